@@ -1,0 +1,48 @@
+"""Planar multi-object grasp geometry: pure numpy + shapely, no Drake.
+
+Names follow the paper "Multi-Object Grasping in the Plane": h0, h_fmin, d_fmin, S, A_i.
+"""
+
+from mog_drake.geometry.candidates import (
+    candidate_grasps,
+    gen_grasp_cands,
+    hull_positions,
+    rank_grasp_cands,
+)
+from mog_drake.geometry.conditions import (
+    AREA_EPS,
+    GraspEvaluation,
+    PolygonSet,
+    evaluate_grasps,
+    grasp_failure,
+    jaw_collision_free,
+)
+from mog_drake.geometry.gripper import GripperGeometry
+from mog_drake.geometry.groups import DEFAULT_GROUP_RADIUS, create_obj_groups, rank_obj_groups
+from mog_drake.geometry.polygon import (
+    final_diameters,
+    min_final_diameter,
+    transform,
+    validate_convex_polygon,
+)
+
+__all__ = [
+    "AREA_EPS",
+    "DEFAULT_GROUP_RADIUS",
+    "GraspEvaluation",
+    "GripperGeometry",
+    "PolygonSet",
+    "candidate_grasps",
+    "create_obj_groups",
+    "evaluate_grasps",
+    "final_diameters",
+    "gen_grasp_cands",
+    "grasp_failure",
+    "hull_positions",
+    "jaw_collision_free",
+    "min_final_diameter",
+    "rank_grasp_cands",
+    "rank_obj_groups",
+    "transform",
+    "validate_convex_polygon",
+]

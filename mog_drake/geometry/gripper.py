@@ -1,0 +1,79 @@
+"""The parallel-jaw gripper in the plane: jaw rectangles and the inner region S (paper Fig. 4).
+
+A grasp is u = (x, y, theta) in the table frame (Sec. 3). In the grasp frame the closing
+axis is +x: the left jaw sits at -x, the right jaw at +x, both closing towards the origin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mog_drake.errors import MogError
+
+
+@dataclass(frozen=True)
+class GripperGeometry:
+    """Planar model of a Robotiq-2F-85-like gripper. The one source of truth for its sizes.
+
+    Defaults are the paper authors' model: plate centres 85 mm apart when open, plates
+    10 mm thick along the closing axis and 20 mm wide across it, so S is 75 mm x 20 mm.
+    """
+
+    opening: float = 0.085  # distance between plate centres when open (m)
+    plate_thickness: float = 0.010  # along the closing axis (m)
+    plate_width: float = 0.020  # across the closing axis (m)
+
+    def __post_init__(self) -> None:
+        for name in ("opening", "plate_thickness", "plate_width"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise MogError(f"gripper {name} must be a positive finite length, got {v}")
+        if self.plate_thickness >= self.opening:
+            raise MogError("gripper plate_thickness must be smaller than the opening")
+
+    @property
+    def w_g(self) -> float:
+        """Initial stroke w_g(t0): the free distance between the open jaws' inner faces."""
+        return self.opening - self.plate_thickness
+
+    @property
+    def s_size(self) -> tuple[float, float]:
+        """Size of the inner rectangular region S: (along closing axis, across)."""
+        return self.w_g, self.plate_width
+
+    @property
+    def reach_radius(self) -> float:
+        """Radius around the grasp point that contains both jaws and S."""
+        return float(np.hypot(self.opening / 2 + self.plate_thickness / 2, self.plate_width / 2))
+
+    def boxes(self) -> dict[str, tuple[float, float, float, float]]:
+        """Grasp-frame axis-aligned boxes (xmin, xmax, ymin, ymax) of S and the two jaws."""
+        hw, hy, t = self.w_g / 2, self.plate_width / 2, self.plate_thickness
+        return {
+            "S": (-hw, hw, -hy, hy),
+            "left_jaw": (-hw - t, -hw, -hy, hy),
+            "right_jaw": (hw, hw + t, -hy, hy),
+        }
+
+    def rectangles(self, grasp) -> dict[str, np.ndarray]:
+        """Table-frame corner arrays (4, 2), CCW, of S and both jaws for one grasp u."""
+        x, y, th = (float(v) for v in grasp)
+        c, s = np.cos(th), np.sin(th)
+        out = {}
+        for name, (x0, x1, y0, y1) in self.boxes().items():
+            local = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+            out[name] = np.stack(
+                [c * local[:, 0] - s * local[:, 1] + x, s * local[:, 0] + c * local[:, 1] + y], 1
+            )
+        return out
+
+
+def to_grasp_frame(points: np.ndarray, grasps: np.ndarray) -> np.ndarray:
+    """Table-frame points (..., K, 2) expressed in the frames of grasps (..., 3), broadcast."""
+    g = np.asarray(grasps, dtype=float)
+    c, s = np.cos(g[..., 2])[..., None], np.sin(g[..., 2])[..., None]
+    dx = points[..., 0] - g[..., 0][..., None]
+    dy = points[..., 1] - g[..., 1][..., None]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)

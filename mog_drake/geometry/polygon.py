@@ -1,0 +1,139 @@
+"""Convex polygons: validation, frictionless final diameters (paper Sec. 4 and Eq. 5).
+
+Pure numpy. A polygon is an (N, 2) array of vertices, counter-clockwise, in metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mog_drake.errors import MogError
+
+# Lengths below this (m) are treated as zero: 1e-9 m is a nanometre, far below any
+# modelling or sensing precision, and far above float round-off on metre-scale data.
+LENGTH_TOL = 1e-9
+
+
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+
+def convex_hull_ccw(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2-D points (Andrew's monotone chain), CCW, collinear points dropped."""
+    pts = np.unique(np.asarray(points, dtype=float), axis=0)  # sorted by x, then y
+    if len(pts) < 3:
+        return pts
+    lower: list[np.ndarray] = []
+    for p in pts:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= LENGTH_TOL**2:
+            lower.pop()
+        lower.append(p)
+    upper: list[np.ndarray] = []
+    for p in pts[::-1]:
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= LENGTH_TOL**2:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def validate_convex_polygon(points, name: str) -> np.ndarray:
+    """Checks that ``points`` are the corners of a convex polygon and returns them CCW.
+
+    The points may come in any order (the hull is taken). Refused, with a message naming
+    ``name``: non-finite numbers, fewer than 3 distinct points, repeated points, points that
+    are all collinear, and points that are not corners of the hull (the polygon is not
+    convex, or a point lies on an edge).
+    """
+    try:
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise MogError(f"shape '{name}': vertices must be a list of [x, y] number pairs") from None
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise MogError(f"shape '{name}': vertices must be a list of [x, y] pairs, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise MogError(f"shape '{name}': vertices contain a non-finite number")
+    distinct = np.unique(pts, axis=0)
+    if len(distinct) != len(pts):
+        raise MogError(f"shape '{name}': repeated vertex")
+    if len(distinct) < 3:
+        raise MogError(f"shape '{name}': needs at least 3 distinct vertices, got {len(distinct)}")
+    hull = convex_hull_ccw(pts)
+    if len(hull) < 3 or polygon_area(hull) <= LENGTH_TOL**2:
+        raise MogError(f"shape '{name}': vertices are collinear (zero area)")
+    if len(hull) != len(pts):
+        missing = [p for p in pts if not np.any(np.all(np.isclose(hull, p, rtol=0, atol=0), axis=1))]
+        raise MogError(
+            f"shape '{name}': not a convex polygon: vertex ({missing[0][0]:g}, {missing[0][1]:g}) "
+            "is not a corner of the convex hull"
+        )
+    return hull
+
+
+def polygon_area(vertices: np.ndarray) -> float:
+    """Signed shoelace area (positive for CCW)."""
+    v = np.asarray(vertices, dtype=float)
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def edge_directions(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit edge directions and outward unit normals of a CCW polygon (edge i: v_i -> v_i+1)."""
+    v = np.asarray(vertices, dtype=float)
+    e = np.roll(v, -1, axis=0) - v
+    e = e / np.linalg.norm(e, axis=1, keepdims=True)
+    n = np.stack([e[:, 1], -e[:, 0]], axis=1)  # outward for CCW
+    return e, n
+
+
+def final_diameters(vertices: np.ndarray, tol: float = 1e-7, merge_tol: float = 1e-5) -> np.ndarray:
+    """Every frictionless stable final diameter d_f of a convex polygon (paper Sec. 4, Fig. 2).
+
+    Under the frictionless point-contact model a parallel-jaw grasp is in equilibrium only if
+    the two contact normals are opposite and collinear (Eq. 1), i.e. one jaw lies flat on an
+    edge e and the other touches the polygon at its farthest point from e's line:
+
+    * (i) a parallel edge whose projection onto e overlaps e with positive length, or
+    * (ii) a single vertex whose perpendicular foot lies inside e.
+
+    Vertex-vertex contacts are unstable and excluded (Sec. 4). The diameter of such a grasp
+    is the distance from e's line to that farthest point. Returns the distinct values,
+    sorted ascending. ``tol`` decides contact geometry; values closer than ``merge_tol``
+    (default 0.01 mm, the precision of published vertex tables) are one diameter.
+    """
+    v = np.asarray(vertices, dtype=float)
+    e, n = edge_directions(v)
+    out: list[float] = []
+    for i in range(len(v)):
+        a, b = v[i], v[(i + 1) % len(v)]
+        depth = (v - a) @ (-n[i])  # distance of every vertex inward from edge i's line
+        d = float(depth.max())
+        far = np.flatnonzero(depth >= d - tol)
+        # projections onto edge i of the farthest vertices, and of edge i itself
+        s_far = (v[far] - a) @ e[i]
+        s_edge = float((b - a) @ e[i])
+        if len(far) == 1:
+            # A foot exactly at an endpoint of e is a vertex-vertex contact: unstable.
+            stable = tol < s_far[0] < s_edge - tol
+        else:
+            lo, hi = max(0.0, float(s_far.min())), min(s_edge, float(s_far.max()))
+            stable = hi - lo > tol
+        if stable:
+            out.append(d)
+    vals = np.sort(np.array(out))
+    merged: list[float] = []
+    for x in vals:
+        if not merged or x - merged[-1] > merge_tol:
+            merged.append(float(x))
+    return np.array(merged)
+
+
+def min_final_diameter(vertices: np.ndarray) -> float:
+    """d_fmin = min_j d_f,j (paper Eq. 5)."""
+    return float(final_diameters(vertices).min())
+
+
+def transform(vertices: np.ndarray, x: float, y: float, theta: float) -> np.ndarray:
+    """Body-frame vertices placed at pose (x, y, theta) in the table frame."""
+    c, s = np.cos(theta), np.sin(theta)
+    v = np.asarray(vertices, dtype=float)
+    return np.stack([c * v[:, 0] - s * v[:, 1] + x, s * v[:, 0] + c * v[:, 1] + y], axis=1)
