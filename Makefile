@@ -1,0 +1,30 @@
+# Two commands for a new user: `make demo` (the main job) and `make test`.
+# Each bootstraps .venv on first use.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e ".[test,dev]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/mog-drake demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check mog_drake tests
+	$(BIN)/ruff format --check mog_drake tests
+
+bench: $(STAMP)
+	$(BIN)/mog-drake bench geometry
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

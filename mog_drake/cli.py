@@ -1,0 +1,341 @@
+"""The `mog-drake` command line. Thin: parse, call, print.
+
+A user error prints one line `mog-drake: error: ...` and exits 2, with no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from mog_drake.errors import MogError
+from mog_drake.tables import format_table
+
+
+# --- helpers ------------------------------------------------------------------------------
+def _library(args):
+    from mog_drake.scenes import ShapeLibrary, default_library
+
+    files = getattr(args, "shapes", None) or []
+    return ShapeLibrary.load(*files) if files else default_library()
+
+
+def _load_scene(args):
+    from mog_drake.scenes import Scene
+
+    lib = _library(args) if getattr(args, "shapes", None) else None
+    return Scene.load(args.scene, lib)
+
+
+def resolve_group(scene, group_arg, gripper=None) -> tuple[tuple[int, ...], str]:
+    """The group to grasp: --group if given, else the scene's own, else Alg. 1's first group."""
+    from mog_drake.geometry import GripperGeometry, create_obj_groups, rank_obj_groups
+
+    if group_arg:
+        for g in group_arg:
+            if not 0 <= g < len(scene):
+                raise MogError(f"--group names object {g}, but the scene has {len(scene)} objects (0..{len(scene) - 1})")
+        if len(set(group_arg)) != len(group_arg):
+            raise MogError("--group names an object twice")
+        return tuple(group_arg), "argument"
+    if scene.group is not None:
+        return tuple(scene.group), "scene"
+    gripper = gripper or GripperGeometry()
+    polys = scene.polygons()
+    ranked = rank_obj_groups(create_obj_groups(polys.centers), polys.d_fmin, gripper.w_g)
+    if not ranked:
+        raise MogError("the scene has no graspable group; pass --group")
+    return ranked[0], "largest"
+
+
+def _emit(args, doc: dict, text: str) -> None:
+    if getattr(args, "json", False):
+        print(json.dumps(doc, indent=2))
+    else:
+        print(text)
+
+
+def _grasp_arg(values) -> np.ndarray:
+    g = np.array(values, dtype=float)
+    if not np.all(np.isfinite(g)):
+        raise MogError(f"--grasp must be three finite numbers X Y THETA, got {values}")
+    return g
+
+
+# --- commands -----------------------------------------------------------------------------
+def cmd_shapes(args) -> int:
+    lib = _library(args)
+    recs = [lib[n].to_record() for n in lib.shapes]
+    rows = [
+        {
+            "name": r["name"],
+            "sides": r["sides"],
+            "height_mm": r["height"] * 1e3,
+            "mass_g": r["mass"] * 1e3,
+            "d_fmin_mm": r["d_fmin"] * 1e3,
+            "final_diameters_mm": ", ".join(f"{d * 1e3:.2f}" for d in r["final_diameters"]),
+        }
+        for r in recs
+    ]
+    _emit(args, {"shapes": recs, "inventories": lib.inventories}, format_table(rows))
+    return 0
+
+
+def cmd_scene_generate(args) -> int:
+    from mog_drake.scenes import ClutterParams, cluttered_scene, row_scene
+
+    rng = np.random.default_rng(args.seed)
+    lib = _library(args)
+    if args.kind == "row":
+        if args.row_class is None:
+            raise MogError("--kind row needs --class N (2..7)")
+        scene = row_scene(args.row_class, rng, lib)
+    else:
+        scene = cluttered_scene(
+            rng, lib, inventory=args.inventory, n_objects=args.objects, params=ClutterParams(n_clusters=args.clusters)
+        )
+    scene.meta["seed"] = args.seed
+    if args.shapes:
+        scene.shapes_file = str(Path(args.shapes[-1]).resolve())
+    if args.output:
+        scene.save(args.output)
+    doc = {"output": args.output, "objects": len(scene), "meta": scene.meta, "scene": scene.to_dict()}
+    if args.output:
+        _emit(args, doc, f"wrote {args.output}: {len(scene)} objects ({args.kind}, seed {args.seed})")
+    else:
+        import yaml
+
+        _emit(args, doc, yaml.safe_dump(scene.to_dict(), sort_keys=False, default_flow_style=None))
+    return 0
+
+
+def cmd_scene_show(args) -> int:
+    from mog_drake import plotting
+    from mog_drake.geometry import GripperGeometry, candidate_grasps, evaluate_grasps, rank_grasp_cands
+
+    scene = _load_scene(args)
+    gripper = GripperGeometry()
+    group, _ = resolve_group(scene, args.group, gripper)
+    ev = order = None
+    if args.candidates:
+        polys = scene.polygons()
+        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper)
+        order = rank_grasp_cands(ev)
+    grasp = _grasp_arg(args.grasp) if args.grasp else None
+    fig = plotting.scene_figure(scene, group, ev, order, top=args.top, gripper=gripper, grasp=grasp,
+                                title=f"{args.scene}  group {list(group)}")
+    plotting.save(fig, args.output)
+    _emit(args, {"output": args.output, "group": list(group)}, f"wrote {args.output}")
+    return 0
+
+
+def cmd_check(args) -> int:
+    from mog_drake.geometry import GripperGeometry, evaluate_grasps
+
+    scene = _load_scene(args)
+    gripper = GripperGeometry()
+    group, source = resolve_group(scene, args.group, gripper)
+    grasp = _grasp_arg(args.grasp)
+    ev = evaluate_grasps(scene.polygons(), group, grasp[None, :], gripper)
+    rec = ev.record(0)
+    doc = {"scene": args.scene, "group": list(group), "group_source": source, **rec}
+    lines = [
+        f"grasp      x={grasp[0]:.4f} m  y={grasp[1]:.4f} m  theta={math.degrees(grasp[2]):.1f} deg",
+        f"group      {list(group)} ({source})",
+        f"h0         {rec['h0'] * 1e3:.2f} mm   (b_l {_mm(rec['b_l'])}, b_r {_mm(rec['b_r'])})",
+        f"h_fmin     {rec['h_fmin'] * 1e3:.2f} mm",
+        "areas      " + ", ".join(f"A_{k}={v * 1e6:.1f} mm^2" for k, v in rec["areas"].items()),
+        f"diameter_ok {rec['diameter_ok']}   area_ok {rec['area_ok']}   collision_free {rec['collision_free']}",
+        f"verdict    {rec['verdict']}",
+    ]
+    if rec["other_objects_in_S"]:
+        lines.append(f"also in S  {rec['other_objects_in_S']} (not in the group)")
+    _emit(args, doc, "\n".join(lines))
+    return 0
+
+
+def _mm(v) -> str:
+    return "-" if v is None else f"{v * 1e3:.2f} mm"
+
+
+def cmd_candidates(args) -> int:
+    from mog_drake.geometry import GripperGeometry, candidate_grasps, evaluate_grasps, rank_grasp_cands
+
+    scene = _load_scene(args)
+    gripper = GripperGeometry()
+    group, source = resolve_group(scene, args.group, gripper)
+    polys = scene.polygons()
+    ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper)
+    order = rank_grasp_cands(ev)
+    recs = []
+    for rank, i in enumerate(order):
+        r = ev.record(int(i))
+        r["rank"] = rank
+        recs.append(r)
+    counts = {v: sum(1 for r in recs if r["verdict"] == v) for v in ("collision", "diameter", "area", "passed")}
+    doc = {"scene": args.scene, "group": list(group), "group_source": source, "h_fmin": ev.h_fmin,
+           "counts": counts, "candidates": recs}
+    shown = [r for r in recs if r["verdict"] != "collision" or args.all][: args.limit]
+    rows = [
+        {
+            "rank": r["rank"],
+            "x_mm": r["grasp"][0] * 1e3,
+            "y_mm": r["grasp"][1] * 1e3,
+            "theta_deg": math.degrees(r["grasp"][2]),
+            "h0_mm": r["h0"] * 1e3,
+            "A_T_mm2": r["area_total"] * 1e6,
+            "min_A_i_mm2": min(r["areas"].values()) * 1e6,
+            "verdict": r["verdict"],
+        }
+        for r in shown
+    ]
+    text = (
+        f"group {list(group)} ({source}); h_fmin = {ev.h_fmin * 1e3:.2f} mm; {len(recs)} candidates: "
+        + ", ".join(f"{k} {v}" for k, v in counts.items())
+        + "\n"
+        + format_table(rows)
+    )
+    _emit(args, doc, text)
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from mog_drake.experiments.bench import bench_geometry
+
+    if args.what == "geometry":
+        rows = bench_geometry(args.scenes, args.seed)
+        _emit(args, {"geometry": rows}, format_table(rows))
+    return 0
+
+
+def cmd_demo(args) -> int:
+    """The planner's geometry on two example scenes: a table and a picture each."""
+    from mog_drake import plotting
+    from mog_drake.geometry import GripperGeometry, candidate_grasps, evaluate_grasps, rank_grasp_cands
+    from mog_drake.scenes import cluttered_scene, row_scene
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    gripper = GripperGeometry()
+    docs = []
+    for name, scene in (
+        ("row4", row_scene(4, np.random.default_rng(args.seed))),
+        ("cluttered", cluttered_scene(np.random.default_rng(args.seed))),
+    ):
+        scene.save(out / f"{name}.yaml")
+        group, source = resolve_group(scene, None, gripper)
+        polys = scene.polygons()
+        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group), gripper)
+        order = rank_grasp_cands(ev)
+        png = plotting.save(
+            plotting.scene_figure(scene, group, ev, order, gripper=gripper,
+                                  title=f"{name}: group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.1f} mm"),
+            out / f"{name}.png",
+        )
+        top = [int(i) for i in order if ev.passed[i]][:5]
+        rows = [{"rank": k, "x_mm": ev.grasps[i, 0] * 1e3, "y_mm": ev.grasps[i, 1] * 1e3,
+                 "theta_deg": math.degrees(ev.grasps[i, 2]), "h0_mm": ev.h0[i] * 1e3,
+                 "A_T_mm2": ev.area_total[i] * 1e6} for k, i in enumerate(top)]
+        counts = {v: int(sum(ev.verdict(i) == v for i in range(len(ev)))) for v in plotting.VERDICT_COLORS}
+        print(f"\n{name}: {len(scene)} objects, group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.2f} mm")
+        print("candidates: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+        print(format_table(rows) if rows else "(no candidate passes both conditions)")
+        print(f"picture: {png}")
+        docs.append({"name": name, "group": list(group), "counts": counts, "png": str(png)})
+    if args.json:
+        print(json.dumps({"scenes": docs}, indent=2))
+    return 0
+
+
+# --- parser -------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="mog-drake", description="Multi-object push-grasping in the plane, on Drake.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp, scene=True):
+        sp.add_argument("--json", action="store_true", help="print one JSON document")
+        sp.add_argument("--shapes", action="append", metavar="FILE", help="extra shape library YAML (repeatable)")
+        if scene:
+            sp.add_argument("scene", help="scene YAML file")
+
+    sp = sub.add_parser("shapes", help="list the object library")
+    common(sp, scene=False)
+    sp.set_defaults(func=cmd_shapes)
+
+    sc = sub.add_parser("scene", help="generate or draw scenes").add_subparsers(dest="scene_command", required=True)
+    sp = sc.add_parser("generate", help="generate a seeded scene")
+    common(sp, scene=False)
+    sp.add_argument("--kind", choices=["row", "cluttered"], default="row")
+    sp.add_argument("--class", dest="row_class", type=int, help="row class: number of objects, 2..7")
+    sp.add_argument("--objects", type=int, help="cluttered: number of objects (default: whole inventory)")
+    sp.add_argument("--inventory", default="isrr33")
+    sp.add_argument("--clusters", type=int, default=4)
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("-o", "--output", help="scene YAML to write (default: print it)")
+    sp.set_defaults(func=cmd_scene_generate)
+
+    sp = sc.add_parser("show", help="draw a scene to a PNG")
+    common(sp)
+    sp.add_argument("-o", "--output", required=True, help="PNG to write")
+    sp.add_argument("--group", type=int, nargs="+")
+    sp.add_argument("--candidates", action="store_true", help="overlay candidates coloured by verdict")
+    sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), help="draw this grasp")
+    sp.add_argument("--top", type=int, default=3, help="S regions of the top N passing candidates")
+    sp.add_argument("--positions", type=int, default=70)
+    sp.add_argument("--orientations", type=int, default=7)
+    sp.set_defaults(func=cmd_scene_show)
+
+    sp = sub.add_parser("check", help="the two necessary conditions for one grasp")
+    common(sp)
+    sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), required=True)
+    sp.add_argument("--group", type=int, nargs="+")
+    sp.set_defaults(func=cmd_check)
+
+    sp = sub.add_parser("candidates", help="every grasp candidate with its figures, ranked by A_T")
+    common(sp)
+    sp.add_argument("--group", type=int, nargs="+")
+    sp.add_argument("--positions", type=int, default=70, help="Np")
+    sp.add_argument("--orientations", type=int, default=7, help="Ntheta")
+    sp.add_argument("--limit", type=int, default=20, help="rows in the text table")
+    sp.add_argument("--all", action="store_true", help="include colliding candidates in the text table")
+    sp.set_defaults(func=cmd_candidates)
+
+    sp = sub.add_parser("bench", help="benchmarks that print a table")
+    sp.add_argument("what", choices=["geometry"])
+    sp.add_argument("--scenes", type=int, default=20, help="scenes per class")
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_bench)
+
+    sp = sub.add_parser("demo", help="the planner's geometry on example scenes (table + picture)")
+    sp.add_argument("--out", default="out/demo")
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_demo)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    for name in ("positions", "orientations", "limit", "scenes", "objects", "clusters", "top"):
+        v = getattr(args, name, None)
+        if v is not None and v < 1:
+            parser.exit(2, f"mog-drake: error: --{name} must be at least 1, got {v}\n")
+    try:
+        return int(args.func(args) or 0)
+    except MogError as e:
+        print(f"mog-drake: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mog-drake: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

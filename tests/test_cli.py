@@ -1,0 +1,75 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from mog_drake.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_shapes_json_lists_the_library(capsys):
+    code, out, _ = run(capsys, "shapes", "--json")
+    assert code == 0
+    doc = json.loads(out)
+    shapes = {s["name"]: s for s in doc["shapes"]}
+    assert len(shapes) == 14
+    bar = shapes["thin_bar"]
+    assert bar["sides"] == 4 and bar["d_fmin"] == pytest.approx(0.007)
+    assert bar["final_diameters"] == pytest.approx([0.007, 0.05])
+    assert bar["vertices"][0] == pytest.approx([-0.025, -0.0035])  # CCW from the lowest-left corner
+
+
+def test_generate_check_candidates(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    code, _, _ = run(capsys, "scene", "generate", "--kind", "row", "--class", "3", "--seed", "1", "-o", str(scene))
+    assert code == 0 and scene.exists()
+    code, out, _ = run(capsys, "check", str(scene), "--grasp", "0", "0", "0", "--json")
+    doc = json.loads(out)
+    assert code == 0
+    for k in ("h0", "h_fmin", "areas", "diameter_ok", "area_ok", "collision_free"):
+        assert k in doc
+    assert set(doc["areas"]) == {"0", "1", "2"}
+    code, out, _ = run(capsys, "candidates", str(scene), "--json")
+    doc = json.loads(out)
+    areas = [c["area_total"] for c in doc["candidates"]]
+    assert areas == sorted(areas, reverse=True)
+    assert sum(doc["counts"].values()) == len(doc["candidates"]) > 0
+    png = tmp_path / "row.png"
+    code, _, _ = run(capsys, "scene", "show", str(scene), "--candidates", "-o", str(png))
+    assert code == 0 and png.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    "argv,msg",
+    [
+        (["check", "missing.yaml", "--grasp", "0", "0", "0"], "file not found"),
+        (["scene", "generate", "--kind", "row"], "needs --class"),
+        (["scene", "generate", "--kind", "row", "--class", "9"], "row class must be one of"),
+    ],
+)
+def test_user_errors_are_one_line_exit_2(capsys, argv, msg):
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    assert msg in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_bad_group_is_refused(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    run(capsys, "scene", "generate", "--kind", "row", "--class", "2", "-o", str(scene))
+    code, _, err = run(capsys, "check", str(scene), "--grasp", "0", "0", "0", "--group", "0", "7")
+    assert code == 2 and "--group names object 7" in err
+
+
+def test_console_script_exit_code(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("objects:\n- {shape: banana, pose: [0, 0, 0]}\n")
+    r = subprocess.run([sys.executable, "-m", "mog_drake.cli", "check", str(bad), "--grasp", "0", "0", "0"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("mog-drake: error:") and "banana" in r.stderr
