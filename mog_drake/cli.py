@@ -155,8 +155,42 @@ def cmd_check(args) -> int:
     ]
     if rec["other_objects_in_S"]:
         lines.append(f"also in S  {rec['other_objects_in_S']} (not in the group)")
+    if args.simulate or args.meshcat or args.record:
+        res = _simulate(scene, group, grasp, args)
+        doc["simulation"] = res.to_dict()
+        lines.append(
+            f"physics    success {res.success}   lifted {res.lifted}   opening {_mm(res.final_opening)}   "
+            f"{res.sim_time:.2f} s simulated in {res.wall_time:.2f} s" + (f"   error: {res.error}" if res.error else "")
+        )
+        if args.record:
+            lines.append(f"replay     {args.record}")
     _emit(args, doc, "\n".join(lines))
+    if args.meshcat and sys.stdin.isatty():
+        input("Meshcat is serving the replay; press Enter to quit. ")
     return 0
+
+
+def _simulate(scene, group, grasp, args):
+    """Runs the physics verifier on one grasp, optionally shown in Meshcat and recorded."""
+    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+
+    meshcat = None
+    if args.meshcat or args.record:
+        from pydrake.geometry import StartMeshcat
+
+        meshcat = StartMeshcat()
+        if args.meshcat:
+            print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
+    config = VerifierConfig()
+    if args.force is not None:
+        if not (0 < args.force <= 235):
+            raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {args.force}")
+        config.physics.force_limit = args.force
+    res = DrakeVerifier(config, meshcat=meshcat).check(scene, group, grasp)
+    if args.record:
+        Path(args.record).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.record).write_text(meshcat.StaticHtml())
+    return res
 
 
 def _mm(v) -> str:
@@ -294,6 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp)
     sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), required=True)
     sp.add_argument("--group", type=int, nargs="+")
+    sp.add_argument("--simulate", action="store_true", help="also run the physics verifier (close, lift, hold)")
+    sp.add_argument("--meshcat", action="store_true", help="show the simulation live in Meshcat (implies --simulate)")
+    sp.add_argument("--record", metavar="HTML", help="write a self-contained Meshcat replay (implies --simulate)")
+    sp.add_argument("--force", type=float, help="grip force limit per jaw in N (default 40)")
     sp.set_defaults(func=cmd_check)
 
     sp = sub.add_parser("candidates", help="every grasp candidate with its figures, ranked by A_T")

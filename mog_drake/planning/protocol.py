@@ -1,0 +1,39 @@
+"""What the planner needs from a physics check: the `Verifier` protocol and its result."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass
+class GraspResult:
+    """Outcome of CheckGraspSuccess() for one grasp u on one group.
+
+    success: every group object was held between the jaws and lifted (extra non-group
+    objects lifted count as a bonus, never as a failure). lifted: ids of every object lifted.
+    error: empty when the check ran as intended; otherwise what went wrong, and then
+    success is always False.
+    """
+
+    success: bool
+    lifted: list[int] = field(default_factory=list)
+    final_opening: float = float("nan")  # inner distance between the jaws at the end (m)
+    sim_time: float = 0.0  # simulated seconds
+    wall_time: float = 0.0  # seconds of computation (includes a plant build if one was needed)
+    built: bool = False  # whether this check had to build a plant
+    error: str = ""
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["final_opening"] = None if np.isnan(self.final_opening) else float(self.final_opening)
+        return d
+
+
+@runtime_checkable
+class Verifier(Protocol):
+    """Anything that can tell whether a grasp lifts its group (the paper's CheckGraspSuccess)."""
+
+    def check(self, scene, group, grasp) -> GraspResult: ...

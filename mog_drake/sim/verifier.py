@@ -1,0 +1,250 @@
+"""CheckGraspSuccess() in Drake: close the gripper at u, lift under gravity, see what stays.
+
+The gripper is an arm-less gantry (x, y, z, yaw; gravity off) with two force-limited finger
+plates. For a (scene, group) the plant is built once, holding the group and every object the
+closing jaws could reach; each grasp then only resets the context, so a planner that checks
+many candidates of one group pays the build once.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.multibody.plant import AddMultibodyPlant
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import BasicVector, DiagramBuilder, EventStatus, LeafSystem
+
+from mog_drake.geometry import GripperGeometry
+from mog_drake.planning.protocol import GraspResult
+from mog_drake.sim.models import (
+    ContactConfig,
+    GripperPhysics,
+    add_gantry_gripper,
+    add_prism,
+    add_table,
+    filter_gripper_self_collisions,
+    pose_to_transform,
+)
+
+
+@dataclass
+class VerifierConfig:
+    """Everything the physics check depends on. Defaults are the project's reference setting."""
+
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    physics: GripperPhysics = field(default_factory=GripperPhysics)
+    settle_time: float = 0.05  # s, objects settle on the table before the jaws move
+    squeeze_time: float = 0.15  # s, jaws keep pushing after the closing ramp
+    lift_height: float = 0.15  # m
+    lift_speed: float = 0.30  # m/s (mean)
+    hold_time: float = 0.20  # s, held in the air before the verdict (a slipping 20 g prism
+    # falls 0.2 m in that time, so anything still above the threshold is held)
+    lifted_fraction: float = 0.5  # an object is lifted if it rose by this fraction of the lift
+    wall_budget: float = 10.0  # s of computation per check before it is abandoned
+    reach_margin: float = 0.02  # m, extra radius when choosing which objects to simulate
+
+    def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
+        t_close0 = self.settle_time
+        t_close1 = t_close0 + (gripper.opening - gripper.plate_thickness) / 2 / self.physics.close_speed
+        t_lift0 = t_close1 + self.squeeze_time
+        t_lift1 = t_lift0 + self.lift_height / self.lift_speed
+        return {"close0": t_close0, "close1": t_close1, "lift0": t_lift0, "lift1": t_lift1,
+                "end": t_lift1 + self.hold_time}
+
+
+def _smooth(s: float) -> tuple[float, float]:
+    """Cubic ease 0 -> 1 on s in [0, 1] and its derivative."""
+    s = min(max(s, 0.0), 1.0)
+    return 3 * s * s - 2 * s**3, 6 * s - 6 * s * s
+
+
+class GraspScript(LeafSystem):
+    """Desired gantry and finger states over time for one grasp u = (x, y, theta) (a numeric
+    parameter): hold open at u, close the jaws at constant speed, squeeze, lift, hold."""
+
+    def __init__(self, gripper: GripperGeometry, config: VerifierConfig):
+        super().__init__()
+        self._g = gripper
+        self._cfg = config
+        self._tl = config.timeline(gripper)
+        self._z0 = config.physics.finger_height + config.physics.finger_clearance
+        self._grasp_index = self.DeclareNumericParameter(BasicVector(np.zeros(3)))
+        self.DeclareVectorOutputPort("desired_state", 12, self._calc)
+
+    @property
+    def z_grasp(self) -> float:
+        return self._z0
+
+    def set_grasp(self, context, grasp) -> None:
+        context.get_mutable_numeric_parameter(self._grasp_index).SetFromVector(np.asarray(grasp, dtype=float))
+
+    def _calc(self, context, output) -> None:
+        t = context.get_time()
+        x, y, th = context.get_numeric_parameter(self._grasp_index).value()
+        tl, g = self._tl, self._g
+        half_open, half_closed = g.opening / 2, g.plate_thickness / 2
+        v = self._cfg.physics.close_speed
+        if t < tl["close0"]:
+            f, fd = half_open, 0.0
+        elif t < tl["close1"]:
+            f, fd = half_open - v * (t - tl["close0"]), -v
+        else:
+            f, fd = half_closed, 0.0
+        dur = tl["lift1"] - tl["lift0"]
+        s, sd = _smooth((t - tl["lift0"]) / dur)
+        z = self._z0 + s * self._cfg.lift_height
+        zd = sd * self._cfg.lift_height / dur if tl["lift0"] <= t <= tl["lift1"] else 0.0
+        output.SetFromVector([x, y, z, th, -f, f, 0.0, 0.0, zd, 0.0, -fd, fd])
+
+
+def objects_in_reach(scene, group, gripper: GripperGeometry, margin: float) -> list[int]:
+    """The group plus every object whose bounding circle comes within the gripper's reach of
+    the group's convex hull (where every candidate of the group lies), plus ``margin``."""
+    import shapely
+
+    polys = scene.polygons()
+    hull = shapely.convex_hull(shapely.MultiPoint(np.concatenate([polys.polygon(int(i)) for i in group])))
+    d = shapely.distance(hull, shapely.points(polys.centers))
+    near = np.flatnonzero(d < polys.radii + gripper.reach_radius + margin)
+    return sorted(set(int(i) for i in near) | set(int(i) for i in group))
+
+
+class _GroupSim:
+    """A built diagram for one (scene, group): plant, script, simulator, default context."""
+
+    def __init__(self, scene, ids: list[int], gripper: GripperGeometry, config: VerifierConfig, meshcat=None):
+        t0 = time.perf_counter()
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlant(config.contact.plant_config(), builder)
+        x0, x1, y0, y1 = scene.table
+        add_table(plant, config.contact, size=(x1 - x0 + 0.4, y1 - y0 + 0.4))
+        self.bodies = {}
+        for i in ids:
+            self.bodies[i] = add_prism(plant, scene.shape(i), f"object_{i}", config.contact)
+        self.gripper = add_gantry_gripper(plant, gripper, config.physics, config.contact)
+        plant.Finalize()
+        filter_gripper_self_collisions(
+            plant, scene_graph, [plant.GetBodyByName(n, self.gripper.instance) for n in
+                                 ("carriage_x", "carriage_y", "carriage_z", "palm", "left_finger", "right_finger")]
+        )
+        self.script = builder.AddSystem(GraspScript(gripper, config))
+        builder.Connect(self.script.get_output_port(), plant.get_desired_state_input_port(self.gripper.instance))
+        self.meshcat = meshcat
+        if meshcat is not None:
+            from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+            MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams())
+        self.diagram = builder.Build()
+        self.plant = plant
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self.script_context = self.script.GetMyMutableContextFromRoot(self.context)
+        self.default_context = self.context.Clone()
+        self.poses = {i: scene.objects[i].pose for i in ids}
+        self.table = scene.table
+        self.build_time = time.perf_counter() - t0
+
+
+class DrakeVerifier:
+    """The physics grasp check (implements the `Verifier` protocol).
+
+    ``check(scene, group, grasp)`` returns a `GraspResult`. Faults are results: a solver
+    failure, a non-finite state, an object leaving the table or a run past the wall budget
+    gives success=False with an error saying what happened.
+    """
+
+    def __init__(self, config: VerifierConfig | None = None, gripper: GripperGeometry | None = None,
+                 meshcat=None):
+        self.config = config or VerifierConfig()
+        self.gripper = gripper or GripperGeometry()
+        self.meshcat = meshcat
+        self._cache_key = None
+        self._sim: _GroupSim | None = None
+
+    def _sim_for(self, scene, group) -> tuple[_GroupSim, bool]:
+        ids = objects_in_reach(scene, group, self.gripper, self.config.reach_margin)
+        key = (tuple((scene.objects[i].shape, scene.objects[i].pose) for i in ids), tuple(ids), id(scene.library))
+        if self._sim is not None and key == self._cache_key:
+            return self._sim, False
+        self._sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat)
+        self._cache_key = key
+        return self._sim, True
+
+    def check(self, scene, group, grasp) -> GraspResult:
+        t0 = time.perf_counter()
+        grasp = np.asarray(grasp, dtype=float)
+        if grasp.shape != (3,) or not np.all(np.isfinite(grasp)):
+            return GraspResult(False, error=f"grasp must be three finite numbers, got {grasp.tolist()}")
+        sim, built = self._sim_for(scene, group)
+        result = self._run(sim, group, grasp, t0)
+        result.built = built
+        return result
+
+    def _run(self, sim: _GroupSim, group, grasp, t0: float) -> GraspResult:
+        cfg, plant, pc = self.config, sim.plant, sim.plant_context
+        sim.context.SetTimeStateAndParametersFrom(sim.default_context)
+        sim.script.set_grasp(sim.script_context, grasp)
+        for i, body in sim.bodies.items():
+            plant.SetFreeBodyPose(pc, body, pose_to_transform(*sim.poses[i]))
+        j = sim.gripper.joints
+        z0 = sim.script.z_grasp
+        g = self.gripper
+        for joint, q in zip(j, (grasp[0], grasp[1], z0, grasp[2], -g.opening / 2, g.opening / 2)):
+            joint.set_translation(pc, q) if hasattr(joint, "set_translation") else joint.set_angle(pc, q)
+        t_end = cfg.timeline(g)["end"]
+        deadline = t0 + cfg.wall_budget
+        status = {"error": ""}
+
+        def monitor(root_context):
+            q = plant.GetPositions(plant.GetMyContextFromRoot(root_context))
+            if not np.all(np.isfinite(q)):
+                status["error"] = f"non-finite state at t = {root_context.get_time():.3f} s"
+                return EventStatus.Failed(None, status["error"])
+            if time.perf_counter() > deadline:
+                status["error"] = f"wall-time budget of {cfg.wall_budget:g} s exceeded at t = {root_context.get_time():.3f} s"
+                return EventStatus.Failed(None, status["error"])
+            return EventStatus.Succeeded()
+
+        sim.simulator.set_monitor(monitor)
+        if sim.meshcat is not None:
+            sim.meshcat.StartRecording()
+        try:
+            sim.simulator.Initialize()
+            sim.simulator.AdvanceTo(t_end)
+        except Exception as e:  # solver failure or a monitor abort
+            msg = status["error"] or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+            return GraspResult(False, sim_time=sim.context.get_time(), wall_time=time.perf_counter() - t0, error=msg)
+        finally:
+            sim.simulator.clear_monitor()
+            if sim.meshcat is not None:
+                sim.meshcat.StopRecording()
+                sim.meshcat.PublishRecording()
+        return self._verdict(sim, group, t0)
+
+    def _verdict(self, sim: _GroupSim, group, t0: float) -> GraspResult:
+        cfg, plant, pc = self.config, sim.plant, sim.plant_context
+        q = plant.GetPositions(pc)
+        wall = time.perf_counter() - t0
+        t = sim.context.get_time()
+        if not np.all(np.isfinite(q)):
+            return GraspResult(False, sim_time=t, wall_time=wall, error="non-finite state at the end")
+        x0, x1, y0, y1 = sim.table
+        lifted, errors = [], []
+        threshold = cfg.lifted_fraction * cfg.lift_height
+        for i, body in sim.bodies.items():
+            p = plant.EvalBodyPoseInWorld(pc, body).translation()
+            if p[2] < -0.02 or not (x0 - 0.2 <= p[0] <= x1 + 0.2 and y0 - 0.2 <= p[1] <= y1 + 0.2):
+                errors.append(f"object {i} left the table (at {np.round(p, 3).tolist()})")
+            elif p[2] > threshold:
+                lifted.append(i)
+        jl, jr = sim.gripper.joints[4], sim.gripper.joints[5]
+        opening = jr.get_translation(pc) - jl.get_translation(pc) - self.gripper.plate_thickness
+        if errors:
+            return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors))
+        success = all(int(i) in lifted for i in group)
+        return GraspResult(success, lifted, float(opening), t, wall)
+
+

@@ -1,0 +1,117 @@
+"""Physics checks on small seeded scenes (each check simulates ~1.2 s in ~0.1-0.3 s)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import make_scene
+from mog_drake.geometry import evaluate_grasps
+from mog_drake.planning.protocol import Verifier
+from mog_drake.sim.models import ContactConfig
+from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig, objects_in_reach
+
+
+@pytest.fixture(scope="module")
+def verifier():
+    return DrakeVerifier()
+
+
+def test_is_a_verifier():
+    assert isinstance(DrakeVerifier(), Verifier)
+
+
+def test_rectangle_across_its_short_side_is_lifted(verifier):
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert r.success and r.lifted == [0] and not r.error
+    assert r.final_opening == pytest.approx(0.007, abs=0.0005)  # the bar's 7 mm width
+    assert r.sim_time > 1.0
+
+
+def test_two_objects_in_a_row_are_both_lifted(verifier):
+    scene = make_scene([("thick_bar", -0.012, 0.0, math.pi / 2), ("small_yellow_cube", 0.010, 0.002, 0.0)],
+                       group=(0, 1))
+    r = verifier.check(scene, (0, 1), [0.0, 0.0, 0.0])
+    assert r.success and r.lifted == [0, 1]
+    assert r.final_opening == pytest.approx(0.012 + 0.025, abs=0.001)
+
+
+def test_diameter_violation_fails(verifier):
+    # A cube turned 45 deg whose corner dips 3 mm into S: h0 = 6 mm < d_fmin = 25 mm.
+    d = 0.0125 * math.sqrt(2)
+    scene = make_scene([("small_yellow_cube", 0.0, 0.007 + d, math.pi / 4)], group=(0,))
+    ev = evaluate_grasps(scene.polygons(), (0,), [[0.0, 0.0, 0.0]])
+    assert not ev.diameter_ok[0] and ev.area_ok[0] and ev.collision_free[0]
+    r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert not r.success and 0 not in r.lifted
+
+
+def test_object_outside_s_is_not_lifted(verifier):
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.045, 0.0)], group=(0,))
+    r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert r.success and r.lifted == [0]  # the cube outside S stays on the table
+    r = verifier.check(scene, (1,), [0.0, 0.0, 0.0])
+    assert not r.success
+
+
+def test_identical_inputs_identical_outcomes():
+    scene = make_scene([("thick_bar", -0.012, 0.0, 1.5), ("red_triangle", 0.018, 0.004, 0.3)], group=(0, 1))
+    grasp = [0.001, 0.0, 0.05]
+    a = DrakeVerifier().check(scene, (0, 1), grasp)
+    v = DrakeVerifier()
+    b = v.check(scene, (0, 1), grasp)
+    c = v.check(scene, (0, 1), grasp)  # from the cached plant
+    assert b.built and not c.built
+    for r in (b, c):
+        assert (r.success, r.lifted, r.final_opening, r.error) == (a.success, a.lifted, a.final_opening, a.error)
+
+
+@pytest.mark.parametrize(
+    "config,msg",
+    [
+        (VerifierConfig(contact=ContactConfig(time_step=0.1)), "left the table"),
+        (VerifierConfig(contact=ContactConfig(hydroelastic_modulus=1e3)), "left the table"),
+        (VerifierConfig(wall_budget=1e-4), "wall-time budget"),
+    ],
+)
+def test_broken_settings_report_an_error_not_a_success(config, msg):
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    r = DrakeVerifier(config).check(scene, (0,), [0.0, 0.0, 0.0])
+    assert not r.success and msg in r.error
+
+
+def test_bad_grasp_is_an_error_result(verifier):
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    r = verifier.check(scene, (0,), [0.0, float("nan"), 0.0])
+    assert not r.success and "finite" in r.error
+
+
+def test_only_reachable_objects_are_simulated():
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("thin_bar", 0.03, 0.0, math.pi / 2),
+                        ("small_yellow_cube", 0.2, 0.2, 0.0)])
+    from mog_drake.geometry import GripperGeometry
+
+    assert objects_in_reach(scene, (0,), GripperGeometry(), 0.02) == [0, 1]
+
+
+def test_check_simulate_cli(tmp_path, capsys):
+    import json
+
+    from mog_drake.cli import main
+
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    path = tmp_path / "bar.yaml"
+    scene.save(path)
+    html = tmp_path / "replay.html"
+    assert main(["check", str(path), "--grasp", "0", "0", "0", "--json", "--record", str(html)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["simulation"]["success"] is True and doc["simulation"]["lifted"] == [0]
+    import base64
+    import re
+
+    text = html.read_text()
+    # The replay embeds Meshcat's messages as base64 msgpack: the prism, the fingers and an
+    # animation must all be there.
+    raw = b"".join(base64.b64decode(b) for b in re.findall(r"octet-binary;base64,([A-Za-z0-9+/=]+)", text))
+    assert b"object_0" in raw and b"left_finger" in raw and b"set_animation" in raw
