@@ -39,7 +39,9 @@ def resolve_group(scene, group_arg, gripper=None) -> tuple[tuple[int, ...], str]
     if group_arg:
         for g in group_arg:
             if not 0 <= g < len(scene):
-                raise MogError(f"--group names object {g}, but the scene has {len(scene)} objects (0..{len(scene) - 1})")
+                raise MogError(
+                    f"--group names object {g}, but the scene has {len(scene)} objects (0..{len(scene) - 1})"
+                )
         if len(set(group_arg)) != len(group_arg):
             raise MogError("--group names an object twice")
         return tuple(group_arg), "argument"
@@ -93,11 +95,15 @@ def cmd_scene_generate(args) -> int:
     lib = _library(args)
     if args.kind == "row":
         if args.row_class is None:
-            raise MogError("--kind row needs --class N (2..7)")
+            raise MogError("--kind row needs --class N (1..7)")
         scene = row_scene(args.row_class, rng, lib)
     else:
         scene = cluttered_scene(
-            rng, lib, inventory=args.inventory, n_objects=args.objects, params=ClutterParams(n_clusters=args.clusters)
+            rng,
+            lib,
+            inventory=args.inventory,
+            n_objects=args.objects,
+            params=ClutterParams(n_clusters=args.clusters),
         )
     scene.meta["seed"] = args.seed
     if args.shapes:
@@ -124,11 +130,21 @@ def cmd_scene_show(args) -> int:
     ev = order = None
     if args.candidates:
         polys = scene.polygons()
-        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper)
+        ev = evaluate_grasps(
+            polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper
+        )
         order = rank_grasp_cands(ev)
     grasp = _grasp_arg(args.grasp) if args.grasp else None
-    fig = plotting.scene_figure(scene, group, ev, order, top=args.top, gripper=gripper, grasp=grasp,
-                                title=f"{args.scene}  group {list(group)}")
+    fig = plotting.scene_figure(
+        scene,
+        group,
+        ev,
+        order,
+        top=args.top,
+        gripper=gripper,
+        grasp=grasp,
+        title=f"{args.scene}  group {list(group)}",
+    )
     plotting.save(fig, args.output)
     _emit(args, {"output": args.output, "group": list(group)}, f"wrote {args.output}")
     return 0
@@ -160,7 +176,8 @@ def cmd_check(args) -> int:
         doc["simulation"] = res.to_dict()
         lines.append(
             f"physics    success {res.success}   lifted {res.lifted}   opening {_mm(res.final_opening)}   "
-            f"{res.sim_time:.2f} s simulated in {res.wall_time:.2f} s" + (f"   error: {res.error}" if res.error else "")
+            f"{res.sim_time:.2f} s simulated in {res.wall_time:.2f} s"
+            + (f"   error: {res.error}" if res.error else "")
         )
         if args.record:
             lines.append(f"replay     {args.record}")
@@ -204,16 +221,26 @@ def cmd_candidates(args) -> int:
     gripper = GripperGeometry()
     group, source = resolve_group(scene, args.group, gripper)
     polys = scene.polygons()
-    ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper)
+    ev = evaluate_grasps(
+        polys, group, candidate_grasps(polys, group, args.positions, args.orientations), gripper
+    )
     order = rank_grasp_cands(ev)
     recs = []
     for rank, i in enumerate(order):
         r = ev.record(int(i))
         r["rank"] = rank
         recs.append(r)
-    counts = {v: sum(1 for r in recs if r["verdict"] == v) for v in ("collision", "diameter", "area", "passed")}
-    doc = {"scene": args.scene, "group": list(group), "group_source": source, "h_fmin": ev.h_fmin,
-           "counts": counts, "candidates": recs}
+    counts = {
+        v: sum(1 for r in recs if r["verdict"] == v) for v in ("collision", "diameter", "area", "passed")
+    }
+    doc = {
+        "scene": args.scene,
+        "group": list(group),
+        "group_source": source,
+        "h_fmin": ev.h_fmin,
+        "counts": counts,
+        "candidates": recs,
+    }
     shown = [r for r in recs if r["verdict"] != "collision" or args.all][: args.limit]
     rows = [
         {
@@ -238,12 +265,164 @@ def cmd_candidates(args) -> int:
     return 0
 
 
+def cmd_plan(args) -> int:
+    from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+    from mog_drake.sim.verifier import DrakeVerifier
+
+    scene = _load_scene(args)
+    group, source = resolve_group(scene, args.group)
+    planner = GraspPlanner(DrakeVerifier(), PlannerConfig(method=args.method, max_physics=args.max_physics))
+    res = planner.plan(scene, group, rng=np.random.default_rng(args.seed))
+    doc = {"scene": args.scene, "group_source": source, **res.to_dict()}
+    t = res.times
+    lines = [
+        f"method     {res.method}   group {list(res.group)} ({source})",
+        f"candidates {res.candidates} collision-free"
+        + (f", {res.passed_conditions} pass both conditions" if res.passed_conditions >= 0 else ""),
+        f"tested     {res.tested} in physics",
+        "grasp      "
+        + (
+            "none found"
+            if res.grasp is None
+            else f"x={res.grasp[0]:.4f} m  y={res.grasp[1]:.4f} m  theta={math.degrees(res.grasp[2]):.1f} deg"
+            f"   lifted {res.result.lifted}"
+        ),
+        f"time       {t['total']:.3f} s (candidates {t['candidates'] * 1e3:.1f} ms, filter {t['filter'] * 1e3:.1f} ms, "
+        f"rank {t['rank'] * 1e3:.1f} ms, physics {t['physics']:.3f} s)",
+    ]
+    _emit(args, doc, "\n".join(lines))
+    return 0
+
+
+def _parse_classes(text: str) -> list[int]:
+    try:
+        if "-" in text:
+            a, b = (int(v) for v in text.split("-"))
+            classes = list(range(a, b + 1))
+        else:
+            classes = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise MogError(f"--classes must look like 2-7 or 2,3,5, got {text!r}") from None
+    from mog_drake.scenes import ROW_CLASSES
+
+    bad = [c for c in classes if c not in ROW_CLASSES]
+    if bad or not classes:
+        raise MogError(f"--classes: {bad or text} not among the row classes {sorted(ROW_CLASSES)}")
+    return classes
+
+
+def cmd_eval(args) -> int:
+    import os
+
+    from mog_drake.experiments import figures
+
+    out = Path(args.out)
+    classes = _parse_classes(args.classes)
+    jobs = args.jobs or os.cpu_count() or 1
+    progress = not args.json
+    if args.experiment == "conditions":
+        from mog_drake.experiments import conditions
+
+        summary, _ = conditions.run(
+            classes,
+            args.scenes_per_class,
+            args.seed,
+            out,
+            jobs,
+            args.ray,
+            progress,
+            args.positions,
+            args.orientations,
+        )
+        png = figures.conditions_figure(summary, out / "conditions.png")
+        cols = [
+            "class",
+            "scenes",
+            "candidates_per_scene",
+            "negatives",
+            "positives",
+            "tn_area_pct",
+            "tn_diameter_pct",
+            "tn_either_pct",
+            "tn_both_pct",
+            "false_negatives",
+            "physics_errors",
+        ]
+        text = format_table(summary["rows"], cols)
+        fns = summary["false_negatives"]
+        text += f"\n\nfalse negatives: {len(fns)}" + "".join(f"\n  {f['replay']}" for f in fns[:20])
+        if len(fns) > 20:
+            text += f"\n  ... {len(fns) - 20} more in {out / 'summary.json'}"
+    else:
+        from mog_drake.experiments import planning_eval
+        from mog_drake.planning.planner import METHODS
+
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        bad = [m for m in methods if m not in METHODS]
+        if bad or not methods:
+            raise MogError(f"--methods: unknown {bad or args.methods} (known: {', '.join(METHODS)})")
+        summary, _ = planning_eval.run(
+            classes,
+            args.scenes_per_class,
+            args.seed,
+            out,
+            methods,
+            jobs,
+            args.ray,
+            args.max_physics,
+            progress,
+            args.positions,
+            args.orientations,
+        )
+        png = figures.planner_figure(summary, out / "planner.png")
+        text = format_table(
+            summary["rows"],
+            [
+                "class",
+                "method",
+                "scenes",
+                "time_s",
+                "time_ci",
+                "tested",
+                "tested_ci",
+                "found_pct",
+                "gp_speedup",
+            ],
+        )
+    import json as _json
+
+    (out / "summary.json").write_text(_json.dumps(summary, indent=2))
+    text += f"\n\nresults: {out / 'results.jsonl'}  summary: {out / 'summary.json'}  figure: {png}"
+    _emit(args, summary, text)
+    return 0
+
+
 def cmd_bench(args) -> int:
     from mog_drake.experiments.bench import bench_geometry
 
     if args.what == "geometry":
         rows = bench_geometry(args.scenes, args.seed)
         _emit(args, {"geometry": rows}, format_table(rows))
+    elif args.what == "verifier":
+        from mog_drake.experiments.bench import bench_verifier
+
+        rows = bench_verifier(args.scenes, args.seed)
+        _emit(args, {"verifier": rows}, format_table(rows))
+    elif args.what == "agreement":
+        from mog_drake.experiments.bench import bench_agreement
+        from mog_drake.progress import Progress
+
+        bar = Progress(args.candidates, "agreement", enabled=not args.json)
+        doc = bench_agreement(args.candidates, args.seed, progress=bar)
+        bar.close()
+        summary = {k: v for k, v in doc.items() if k != "disagreements"}
+        text = format_table([summary]) + "".join(
+            f"\n  disagreement: class {d['class']} scene seed {d['scene_seed']} grasp "
+            f"{[round(x, 5) for x in d['grasp']]}: 5 ms {d['coarse']['success']} ({d['coarse']['error'] or 'ok'}), "
+            f"fine {d['fine']['success']} ({d['fine']['error'] or 'ok'})"
+            for d in doc["disagreements"]
+        )
+        _emit(args, doc, text)
     return 0
 
 
@@ -267,16 +446,32 @@ def cmd_demo(args) -> int:
         ev = evaluate_grasps(polys, group, candidate_grasps(polys, group), gripper)
         order = rank_grasp_cands(ev)
         png = plotting.save(
-            plotting.scene_figure(scene, group, ev, order, gripper=gripper,
-                                  title=f"{name}: group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.1f} mm"),
+            plotting.scene_figure(
+                scene,
+                group,
+                ev,
+                order,
+                gripper=gripper,
+                title=f"{name}: group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.1f} mm",
+            ),
             out / f"{name}.png",
         )
         top = [int(i) for i in order if ev.passed[i]][:5]
-        rows = [{"rank": k, "x_mm": ev.grasps[i, 0] * 1e3, "y_mm": ev.grasps[i, 1] * 1e3,
-                 "theta_deg": math.degrees(ev.grasps[i, 2]), "h0_mm": ev.h0[i] * 1e3,
-                 "A_T_mm2": ev.area_total[i] * 1e6} for k, i in enumerate(top)]
+        rows = [
+            {
+                "rank": k,
+                "x_mm": ev.grasps[i, 0] * 1e3,
+                "y_mm": ev.grasps[i, 1] * 1e3,
+                "theta_deg": math.degrees(ev.grasps[i, 2]),
+                "h0_mm": ev.h0[i] * 1e3,
+                "A_T_mm2": ev.area_total[i] * 1e6,
+            }
+            for k, i in enumerate(top)
+        ]
         counts = {v: int(sum(ev.verdict(i) == v for i in range(len(ev)))) for v in plotting.VERDICT_COLORS}
-        print(f"\n{name}: {len(scene)} objects, group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.2f} mm")
+        print(
+            f"\n{name}: {len(scene)} objects, group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.2f} mm"
+        )
         print("candidates: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
         print(format_table(rows) if rows else "(no candidate passes both conditions)")
         print(f"picture: {png}")
@@ -288,12 +483,16 @@ def cmd_demo(args) -> int:
 
 # --- parser -------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="mog-drake", description="Multi-object push-grasping in the plane, on Drake.")
+    p = argparse.ArgumentParser(
+        prog="mog-drake", description="Multi-object push-grasping in the plane, on Drake."
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp, scene=True):
         sp.add_argument("--json", action="store_true", help="print one JSON document")
-        sp.add_argument("--shapes", action="append", metavar="FILE", help="extra shape library YAML (repeatable)")
+        sp.add_argument(
+            "--shapes", action="append", metavar="FILE", help="extra shape library YAML (repeatable)"
+        )
         if scene:
             sp.add_argument("scene", help="scene YAML file")
 
@@ -301,11 +500,18 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp, scene=False)
     sp.set_defaults(func=cmd_shapes)
 
-    sc = sub.add_parser("scene", help="generate or draw scenes").add_subparsers(dest="scene_command", required=True)
+    sc = sub.add_parser("scene", help="generate or draw scenes").add_subparsers(
+        dest="scene_command", required=True
+    )
     sp = sc.add_parser("generate", help="generate a seeded scene")
     common(sp, scene=False)
     sp.add_argument("--kind", choices=["row", "cluttered"], default="row")
-    sp.add_argument("--class", dest="row_class", type=int, help="row class: number of objects, 2..7")
+    sp.add_argument(
+        "--class",
+        dest="row_class",
+        type=int,
+        help="row class: number of objects, 1..7 (the paper's are 2..7)",
+    )
     sp.add_argument("--objects", type=int, help="cluttered: number of objects (default: whole inventory)")
     sp.add_argument("--inventory", default="isrr33")
     sp.add_argument("--clusters", type=int, default=4)
@@ -328,9 +534,15 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp)
     sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), required=True)
     sp.add_argument("--group", type=int, nargs="+")
-    sp.add_argument("--simulate", action="store_true", help="also run the physics verifier (close, lift, hold)")
-    sp.add_argument("--meshcat", action="store_true", help="show the simulation live in Meshcat (implies --simulate)")
-    sp.add_argument("--record", metavar="HTML", help="write a self-contained Meshcat replay (implies --simulate)")
+    sp.add_argument(
+        "--simulate", action="store_true", help="also run the physics verifier (close, lift, hold)"
+    )
+    sp.add_argument(
+        "--meshcat", action="store_true", help="show the simulation live in Meshcat (implies --simulate)"
+    )
+    sp.add_argument(
+        "--record", metavar="HTML", help="write a self-contained Meshcat replay (implies --simulate)"
+    )
     sp.add_argument("--force", type=float, help="grip force limit per jaw in N (default 40)")
     sp.set_defaults(func=cmd_check)
 
@@ -343,9 +555,42 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--all", action="store_true", help="include colliding candidates in the text table")
     sp.set_defaults(func=cmd_candidates)
 
+    sp = sub.add_parser("plan", help="plan a grasp for a group (GraspPlanner, Alg. 2)")
+    common(sp)
+    sp.add_argument("--group", type=int, nargs="+")
+    sp.add_argument("--method", default="gp", help="gp, rand-phys, rank-phys, rand-fil-phys or single")
+    sp.add_argument("--seed", type=int, default=0, help="for the randomised methods")
+    sp.add_argument("--max-physics", type=int, help="stop after this many physics checks")
+    sp.set_defaults(func=cmd_plan)
+
+    ev = sub.add_parser("eval", help="the paper's experiments").add_subparsers(
+        dest="experiment", required=True
+    )
+    for name, helptext in (
+        ("conditions", "necessary conditions vs physics (Sec. 7.2)"),
+        ("planner", "GP vs its baselines (Sec. 7.3)"),
+    ):
+        sp = ev.add_parser(name, help=helptext)
+        sp.add_argument("--classes", default="2-7", help="row classes, e.g. 2-7 or 2,4")
+        sp.add_argument("--scenes-per-class", type=int, default=50)
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--out", required=True, help="output folder (resumes what it holds)")
+        sp.add_argument("--jobs", type=int, help="parallel processes (default: all cores)")
+        sp.add_argument("--ray", metavar="ADDRESS", help="run on an existing Ray cluster")
+        sp.add_argument("--positions", type=int, default=70, help="Np")
+        sp.add_argument("--orientations", type=int, default=7, help="Ntheta")
+        sp.add_argument("--json", action="store_true")
+        if name == "planner":
+            sp.add_argument("--methods", default="gp,rand-phys,rank-phys,rand-fil-phys")
+            sp.add_argument(
+                "--max-physics", type=int, help="cap physics checks per plan (speed-ups become lower bounds)"
+            )
+        sp.set_defaults(func=cmd_eval)
+
     sp = sub.add_parser("bench", help="benchmarks that print a table")
-    sp.add_argument("what", choices=["geometry"])
-    sp.add_argument("--scenes", type=int, default=20, help="scenes per class")
+    sp.add_argument("what", choices=["geometry", "verifier", "agreement"])
+    sp.add_argument("--scenes", type=int, default=20, help="scenes per class (geometry, verifier)")
+    sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)
@@ -361,7 +606,19 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    for name in ("positions", "orientations", "limit", "scenes", "objects", "clusters", "top"):
+    for name in (
+        "positions",
+        "orientations",
+        "limit",
+        "scenes",
+        "objects",
+        "clusters",
+        "top",
+        "candidates",
+        "scenes_per_class",
+        "jobs",
+        "max_physics",
+    ):
         v = getattr(args, name, None)
         if v is not None and v < 1:
             parser.exit(2, f"mog-drake: error: --{name} must be at least 1, got {v}\n")

@@ -44,9 +44,13 @@ def draw_gripper(ax, grasp, gripper: GripperGeometry, color="black", s_alpha=0.1
     """The two jaws (filled) and the inner region S (outlined) of one grasp."""
     rects = gripper.rectangles(grasp)
     for name in ("left_jaw", "right_jaw"):
-        ax.add_patch(MplPolygon(rects[name] * 1000, closed=True, facecolor=color, alpha=0.85, edgecolor=color))
+        ax.add_patch(
+            MplPolygon(rects[name] * 1000, closed=True, facecolor=color, alpha=0.85, edgecolor=color)
+        )
     ax.add_patch(
-        MplPolygon(rects["S"] * 1000, closed=True, facecolor=color, alpha=s_alpha, edgecolor=color, lw=lw, ls="--")
+        MplPolygon(
+            rects["S"] * 1000, closed=True, facecolor=color, alpha=s_alpha, edgecolor=color, lw=lw, ls="--"
+        )
     )
 
 
@@ -77,7 +81,9 @@ def draw_candidates(ax, ev: GraspEvaluation, gripper: GripperGeometry, length: f
         g = ev.grasps[idx]
         d = np.stack([np.cos(g[:, 2]), np.sin(g[:, 2])], axis=1) * length / 2
         segs = np.stack([g[:, :2] - d, g[:, :2] + d], axis=1) * 1000
-        ax.add_collection(LineCollection(segs, colors=color, linewidths=1.0, alpha=0.8, label=f"{verdict} ({len(idx)})"))
+        ax.add_collection(
+            LineCollection(segs, colors=color, linewidths=1.0, alpha=0.8, label=f"{verdict} ({len(idx)})")
+        )
 
 
 def scene_figure(
@@ -107,7 +113,11 @@ def scene_figure(
     if grasp is not None:
         draw_gripper(ax, grasp, gripper, color="#1f77b4")
         draw_intersections(ax, scene, grasp, group if group is not None else range(len(scene)), gripper)
-    pts = np.concatenate([scene.polygon(i) for i in range(len(scene))]) * 1000 if len(scene) else np.zeros((1, 2))
+    pts = (
+        np.concatenate([scene.polygon(i) for i in range(len(scene))]) * 1000
+        if len(scene)
+        else np.zeros((1, 2))
+    )
     pad = 50.0
     ax.set_xlim(pts[:, 0].min() - pad, pts[:, 0].max() + pad)
     ax.set_ylim(pts[:, 1].min() - pad, pts[:, 1].max() + pad)

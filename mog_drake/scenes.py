@@ -365,8 +365,10 @@ class Scene:
 
 # --- generators -------------------------------------------------------------------------
 
-#: The paper's row classes (Sec. 7.2, REFERENCE Sec. 3). "irregular" draws a non-bar shape.
+#: The paper's row classes 2..7 (Sec. 7.2); "irregular" draws a non-bar shape. Class 1, a
+#: single irregular object, is ours (benchmarks and single-object checks).
 ROW_CLASSES: dict[int, tuple[str, ...]] = {
+    1: ("irregular",),
     2: ("irregular", "irregular"),
     3: ("irregular", "thin_bar", "thick_bar"),
     4: ("irregular", "thin_bar", "thin_bar", "thick_bar"),
@@ -391,7 +393,7 @@ def row_scene(
     library: ShapeLibrary | None = None,
     params: RowParams = RowParams(),
 ) -> Scene:
-    """A scene of the paper's class ``n_class`` (2..7): the objects of the class mix in random
+    """A scene of the paper's class ``n_class`` (2..7, or 1): the objects of the class mix in random
     order, in a row along x with ``params.gap`` between neighbours. Each object is turned so
     that its minimum width lies along x (flipped by pi at random), plus uniform yaw jitter,
     and shifted in y by uniform lateral jitter. The whole row is the group."""

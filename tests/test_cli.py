@@ -27,7 +27,9 @@ def test_shapes_json_lists_the_library(capsys):
 
 def test_generate_check_candidates(tmp_path, capsys):
     scene = tmp_path / "row.yaml"
-    code, _, _ = run(capsys, "scene", "generate", "--kind", "row", "--class", "3", "--seed", "1", "-o", str(scene))
+    code, _, _ = run(
+        capsys, "scene", "generate", "--kind", "row", "--class", "3", "--seed", "1", "-o", str(scene)
+    )
     assert code == 0 and scene.exists()
     code, out, _ = run(capsys, "check", str(scene), "--grasp", "0", "0", "0", "--json")
     doc = json.loads(out)
@@ -69,7 +71,10 @@ def test_bad_group_is_refused(tmp_path, capsys):
 def test_console_script_exit_code(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("objects:\n- {shape: banana, pose: [0, 0, 0]}\n")
-    r = subprocess.run([sys.executable, "-m", "mog_drake.cli", "check", str(bad), "--grasp", "0", "0", "0"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [sys.executable, "-m", "mog_drake.cli", "check", str(bad), "--grasp", "0", "0", "0"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 2
     assert r.stderr.strip().startswith("mog-drake: error:") and "banana" in r.stderr

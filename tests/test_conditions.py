@@ -3,10 +3,10 @@ import math
 import numpy as np
 import pytest
 import shapely
+from conftest import make_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import make_scene
 from mog_drake.geometry import (
     GripperGeometry,
     candidate_grasps,
@@ -30,7 +30,9 @@ def test_gripper_defaults_are_the_papers():
 def test_two_bars_centred_hand_computed():
     # Two thin bars (7 mm across x, 50 mm along y) at x = -10 mm and +10 mm; grasp at the
     # origin along x. S spans x in [-37.5, 37.5] mm, y in [-10, 10] mm.
-    scene = make_scene([("thin_bar", -0.010, 0.0, math.pi / 2), ("thin_bar", 0.010, 0.0, math.pi / 2)], group=(0, 1))
+    scene = make_scene(
+        [("thin_bar", -0.010, 0.0, math.pi / 2), ("thin_bar", 0.010, 0.0, math.pi / 2)], group=(0, 1)
+    )
     ev = evaluate_grasps(scene.polygons(), (0, 1), [[0.0, 0.0, 0.0]])
     assert ev.b_l[0] == pytest.approx(0.0375 - 0.0135)
     assert ev.b_r[0] == pytest.approx(0.0375 - 0.0135)
@@ -84,7 +86,9 @@ def _shapely_truth(scene, group, grasp):
     rects = G.rectangles(grasp)
     S, L, R = (shapely.Polygon(rects[k]) for k in ("S", "left_jaw", "right_jaw"))
     polys = scene.shapely_polygons()
-    collide = any(shapely.intersection(p, L).area > 1e-10 or shapely.intersection(p, R).area > 1e-10 for p in polys)
+    collide = any(
+        shapely.intersection(p, L).area > 1e-10 or shapely.intersection(p, R).area > 1e-10 for p in polys
+    )
     areas = [shapely.intersection(polys[g], S).area for g in group]
     # h0: extent along the closing axis of all material inside S, in the grasp frame.
     c, s = math.cos(grasp[2]), math.sin(grasp[2])
@@ -114,13 +118,15 @@ def test_vectorized_figures_match_shapely(n_class):
 @settings(max_examples=80, deadline=None)
 @given(
     st.sampled_from(["thin_bar", "red_triangle", "large_hexagon", "blue_pentagon", "yellow_quad"]),
-    st.floats(-0.06, 0.06), st.floats(-0.03, 0.03), st.floats(-4, 4),
-    st.floats(-0.05, 0.05), st.floats(-0.02, 0.02),
+    st.floats(-0.06, 0.06),
+    st.floats(-0.03, 0.03),
+    st.floats(-4, 4),
+    st.floats(-0.05, 0.05),
+    st.floats(-0.02, 0.02),
 )
 def test_box_area_matches_shapely(shape, x, y, th, bx, by):
-    from mog_drake.scenes import default_library
-
     from mog_drake.geometry.polygon import transform
+    from mog_drake.scenes import default_library
 
     poly = transform(default_library()[shape].vertices, x, y, th)
     box = (bx - 0.0375, bx + 0.0375, by - 0.01, by + 0.01)
@@ -138,7 +144,9 @@ def test_box_area_shared_edges_count_once():
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.integers(2, 7), st.integers(0, 10_000), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-7, 7))
+@given(
+    st.integers(2, 7), st.integers(0, 10_000), st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-7, 7)
+)
 def test_every_figure_is_invariant_under_a_rigid_motion(n_class, seed, dx, dy, dth):
     """Moving scene and grasps together by one rigid motion changes no figure or verdict."""
     from mog_drake.scenes import Scene, SceneObject
@@ -149,8 +157,12 @@ def test_every_figure_is_invariant_under_a_rigid_motion(n_class, seed, dx, dy, d
     def move(x, y, th):
         return c * x - s * y + dx, s * x + c * y + dy, th + dth
 
-    moved = Scene([SceneObject(o.shape, *move(*o.pose)) for o in scene.objects], scene.library,
-                  table=(-10, 10, -10, 10), group=scene.group)
+    moved = Scene(
+        [SceneObject(o.shape, *move(*o.pose)) for o in scene.objects],
+        scene.library,
+        table=(-10, 10, -10, 10),
+        group=scene.group,
+    )
     polys, polys_m = scene.polygons(), moved.polygons()
     grasps = candidate_grasps(polys, scene.group)[::5]
     grasps_m = np.array([move(*g) for g in grasps])

@@ -44,10 +44,20 @@ def test_obtuse_triangle_vertex_foot_outside_edge_is_unstable():
 
 # d_fmin in mm from the reference table of the 14 library shapes.
 REFERENCE_D_FMIN_MM = {
-    "thin_bar": 7.00, "thick_bar": 12.00, "blue_quad": 29.58, "yellow_quad": 23.94,
-    "small_yellow_cube": 25.00, "orange_quad": 28.00, "dark_yellow_cube": 29.00,
-    "red_triangle": 36.37, "green_trapezoid": 33.23, "orange_trapezoid": 30.08,
-    "blue_pentagon": 35.39, "pink_pentagon": 36.64, "large_hexagon": 34.73, "small_hexagon": 29.58,
+    "thin_bar": 7.00,
+    "thick_bar": 12.00,
+    "blue_quad": 29.58,
+    "yellow_quad": 23.94,
+    "small_yellow_cube": 25.00,
+    "orange_quad": 28.00,
+    "dark_yellow_cube": 29.00,
+    "red_triangle": 36.37,
+    "green_trapezoid": 33.23,
+    "orange_trapezoid": 30.08,
+    "blue_pentagon": 35.39,
+    "pink_pentagon": 36.64,
+    "large_hexagon": 34.73,
+    "small_hexagon": 29.58,
 }
 
 

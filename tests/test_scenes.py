@@ -2,8 +2,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import make_scene
+
 from mog_drake.errors import MogError
 from mog_drake.scenes import ROW_CLASSES, Scene, ShapeLibrary, cluttered_scene, row_scene
 
@@ -68,10 +68,15 @@ def _write(tmp_path, text):
     "text,msg",
     [
         ("objects:\n- {shape: banana, pose: [0, 0, 0]}\n", "unknown shape 'banana'"),
-        ("objects:\n- {shape: thin_bar, pose: [.nan, 0, 0]}\n", "object 0 \\(thin_bar\\): pose .* not finite"),
+        (
+            "objects:\n- {shape: thin_bar, pose: [.nan, 0, 0]}\n",
+            "object 0 \\(thin_bar\\): pose .* not finite",
+        ),
         ("objects:\n- {shape: thin_bar, pose: [0, .inf, 0]}\n", "not finite"),
-        ("objects:\n- {shape: thin_bar, pose: [0, 0, 0]}\n- {shape: thick_bar, pose: [0.01, 0, 0]}\n",
-         "objects 0 \\(thin_bar\\) and 1 \\(thick_bar\\) overlap"),
+        (
+            "objects:\n- {shape: thin_bar, pose: [0, 0, 0]}\n- {shape: thick_bar, pose: [0.01, 0, 0]}\n",
+            "objects 0 \\(thin_bar\\) and 1 \\(thick_bar\\) overlap",
+        ),
         ("objects:\n- {shape: thin_bar, pose: [0.24, 0, 0]}\n", "object 0 \\(thin_bar\\) lies off the table"),
         ("objects:\n- {shape: thin_bar, pose: [0, 0]}\n", "three numbers"),
         ("objects: [\n", "not valid YAML"),

@@ -2,10 +2,9 @@
 
 import math
 
-import numpy as np
 import pytest
-
 from conftest import make_scene
+
 from mog_drake.geometry import evaluate_grasps
 from mog_drake.planning.protocol import Verifier
 from mog_drake.sim.models import ContactConfig
@@ -30,8 +29,9 @@ def test_rectangle_across_its_short_side_is_lifted(verifier):
 
 
 def test_two_objects_in_a_row_are_both_lifted(verifier):
-    scene = make_scene([("thick_bar", -0.012, 0.0, math.pi / 2), ("small_yellow_cube", 0.010, 0.002, 0.0)],
-                       group=(0, 1))
+    scene = make_scene(
+        [("thick_bar", -0.012, 0.0, math.pi / 2), ("small_yellow_cube", 0.010, 0.002, 0.0)], group=(0, 1)
+    )
     r = verifier.check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert r.success and r.lifted == [0, 1]
     assert r.final_opening == pytest.approx(0.012 + 0.025, abs=0.001)
@@ -48,7 +48,9 @@ def test_diameter_violation_fails(verifier):
 
 
 def test_object_outside_s_is_not_lifted(verifier):
-    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.045, 0.0)], group=(0,))
+    scene = make_scene(
+        [("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.045, 0.0)], group=(0,)
+    )
     r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
     assert r.success and r.lifted == [0]  # the cube outside S stays on the table
     r = verifier.check(scene, (1,), [0.0, 0.0, 0.0])
@@ -64,7 +66,12 @@ def test_identical_inputs_identical_outcomes():
     c = v.check(scene, (0, 1), grasp)  # from the cached plant
     assert b.built and not c.built
     for r in (b, c):
-        assert (r.success, r.lifted, r.final_opening, r.error) == (a.success, a.lifted, a.final_opening, a.error)
+        assert (r.success, r.lifted, r.final_opening, r.error) == (
+            a.success,
+            a.lifted,
+            a.final_opening,
+            a.error,
+        )
 
 
 @pytest.mark.parametrize(
@@ -88,8 +95,13 @@ def test_bad_grasp_is_an_error_result(verifier):
 
 
 def test_only_reachable_objects_are_simulated():
-    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("thin_bar", 0.03, 0.0, math.pi / 2),
-                        ("small_yellow_cube", 0.2, 0.2, 0.0)])
+    scene = make_scene(
+        [
+            ("thin_bar", 0.0, 0.0, math.pi / 2),
+            ("thin_bar", 0.03, 0.0, math.pi / 2),
+            ("small_yellow_cube", 0.2, 0.2, 0.0),
+        ]
+    )
     from mog_drake.geometry import GripperGeometry
 
     assert objects_in_reach(scene, (0,), GripperGeometry(), 0.02) == [0, 1]

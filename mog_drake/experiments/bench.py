@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
@@ -20,8 +21,19 @@ def _timed(fn, repeats: int):
     return float(np.median(best)), out
 
 
-def bench_geometry(scenes_per_class: int = 20, seed: int = 0, repeats: int = 5,
-                   classes=range(2, 8), gripper: GripperGeometry | None = None) -> list[dict]:
+def _filter_rank(polys, group, cands, gripper):
+    ev = evaluate_grasps(polys, group, cands, gripper)
+    order = rank_grasp_cands(ev)
+    return order[ev.passed[order]]
+
+
+def bench_geometry(
+    scenes_per_class: int = 20,
+    seed: int = 0,
+    repeats: int = 5,
+    classes=range(2, 8),
+    gripper: GripperGeometry | None = None,
+) -> list[dict]:
     """Median time per scene of candidate generation (Np x Ntheta grasps + jaw collision
     rejection), of filtering + ranking (h0, A_i, both conditions, sort by A_T) and in total,
     for the paper's row classes. Each scene's figure is the median of ``repeats`` runs."""
@@ -32,25 +44,136 @@ def bench_geometry(scenes_per_class: int = 20, seed: int = 0, repeats: int = 5,
         for k in range(scenes_per_class):
             scene = row_scene(c, np.random.default_rng([seed, c, k]))
             polys = scene.polygons()
-            tg, cands = _timed(lambda: gen_grasp_cands(polys, scene.group, gripper), repeats)
-
-            def filter_rank():
-                ev = evaluate_grasps(polys, scene.group, cands, gripper)
-                order = rank_grasp_cands(ev)
-                return order[ev.passed[order]]
-
-            tf, _ = _timed(filter_rank, repeats)
+            tg, cands = _timed(partial(gen_grasp_cands, polys, scene.group, gripper), repeats)
+            tf, _ = _timed(partial(_filter_rank, polys, scene.group, cands, gripper), repeats)
             gen_t.append(tg)
             fil_t.append(tf)
             n_cands.append(len(cands))
         tot = np.array(gen_t) + np.array(fil_t)
-        rows.append({
-            "objects": c,
-            "scenes": scenes_per_class,
-            "candidates": float(np.mean(n_cands)),
-            "generate_ms": 1e3 * float(np.median(gen_t)),
-            "filter_rank_ms": 1e3 * float(np.median(fil_t)),
-            "total_ms": 1e3 * float(np.median(tot)),
-            "total_max_ms": 1e3 * float(np.max(tot)),
-        })
+        rows.append(
+            {
+                "objects": c,
+                "scenes": scenes_per_class,
+                "candidates": float(np.mean(n_cands)),
+                "generate_ms": 1e3 * float(np.median(gen_t)),
+                "filter_rank_ms": 1e3 * float(np.median(fil_t)),
+                "total_ms": 1e3 * float(np.median(tot)),
+                "total_max_ms": 1e3 * float(np.max(tot)),
+            }
+        )
     return rows
+
+
+def bench_verifier(
+    seeds: int = 5, seed: int = 0, classes=range(1, 8), warm_checks: int = 3, config=None
+) -> list[dict]:
+    """Wall time of one physics check per group size, median over seeds: ``cold`` builds the
+    plant and simulates (a fresh verifier), ``warm`` reuses the plant of the same group (what
+    a planner pays for its second and later candidates). Candidates are the top-ranked
+    collision-free grasps of each seeded row scene."""
+    from mog_drake.sim.verifier import DrakeVerifier
+
+    rows = []
+    for c in classes:
+        cold, warm, sim_t, succ, n = [], [], [], 0, 0
+        for k in range(seeds):
+            scene = row_scene(c, np.random.default_rng([seed, c, k]))
+            polys = scene.polygons()
+            cands = gen_grasp_cands(polys, scene.group)
+            if len(cands) == 0:
+                continue
+            ev = evaluate_grasps(polys, scene.group, cands)
+            order = rank_grasp_cands(ev)
+            v = DrakeVerifier(config)
+            r = v.check(scene, scene.group, cands[order[0]])
+            cold.append(r.wall_time)
+            sim_t.append(r.sim_time)
+            succ += r.success
+            n += 1
+            for i in order[1 : 1 + warm_checks]:
+                r = v.check(scene, scene.group, cands[i])
+                warm.append(r.wall_time)
+                succ += r.success
+                n += 1
+        rows.append(
+            {
+                "objects": c,
+                "checks": n,
+                "cold_median_s": float(np.median(cold)) if cold else float("nan"),
+                "warm_median_s": float(np.median(warm)) if warm else float("nan"),
+                "warm_max_s": float(np.max(warm)) if warm else float("nan"),
+                "sim_time_s": float(np.median(sim_t)) if sim_t else float("nan"),
+                "lifted_share": succ / n if n else float("nan"),
+            }
+        )
+    return rows
+
+
+def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.001, progress=None) -> dict:
+    """Outcome agreement between the default dt = 5 ms verifier and a fine reference.
+
+    Half of the candidates are drawn uniformly from the collision-free candidates of random
+    row scenes (classes 2..7), half from those that pass both conditions (the ones a planner
+    actually simulates, and the harder calls). Returns the confusion counts and the list of
+    disagreements (scene class, seed, grasp) so each can be replayed."""
+    from dataclasses import replace
+
+    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+
+    base = VerifierConfig()
+    fine_cfg = VerifierConfig(contact=replace(base.contact, time_step=fine_dt))
+    coarse, fine = DrakeVerifier(base), DrakeVerifier(fine_cfg)
+    rng = np.random.default_rng(seed)
+    counts = {"both_success": 0, "both_failure": 0, "coarse_only": 0, "fine_only": 0}
+    disagreements, coarse_t, fine_t, errors = [], [], [], 0
+    done = 0
+    while done < n_candidates:
+        c = int(rng.integers(2, 8))
+        scene_seed = int(rng.integers(1 << 31))
+        scene = row_scene(c, np.random.default_rng(scene_seed))
+        polys = scene.polygons()
+        cands = gen_grasp_cands(polys, scene.group)
+        if len(cands) == 0:
+            continue
+        ev = evaluate_grasps(polys, scene.group, cands)
+        pool = np.flatnonzero(ev.passed) if done % 2 else np.arange(len(cands))
+        if len(pool) == 0:
+            continue
+        g = cands[int(rng.choice(pool))]
+        a = coarse.check(scene, scene.group, g)
+        b = fine.check(scene, scene.group, g)
+        coarse_t.append(a.wall_time)
+        fine_t.append(b.wall_time)
+        errors += bool(a.error) + bool(b.error)
+        key = {
+            (True, True): "both_success",
+            (False, False): "both_failure",
+            (True, False): "coarse_only",
+            (False, True): "fine_only",
+        }[(a.success, b.success)]
+        counts[key] += 1
+        if a.success != b.success:
+            disagreements.append(
+                {
+                    "class": c,
+                    "scene_seed": scene_seed,
+                    "grasp": g.tolist(),
+                    "coarse": a.to_dict(),
+                    "fine": b.to_dict(),
+                }
+            )
+        done += 1
+        if progress:
+            progress(done, n_candidates)
+    n = sum(counts.values())
+    return {
+        "candidates": n,
+        "fine_dt": fine_dt,
+        "coarse_dt": base.contact.time_step,
+        **counts,
+        "agreement": (counts["both_success"] + counts["both_failure"]) / n,
+        "coarse_median_s": float(np.median(coarse_t)),
+        "fine_median_s": float(np.median(fine_t)),
+        "results_with_error": errors,
+        "disagreements": disagreements,
+    }

@@ -108,8 +108,15 @@ def _proximity(contact: ContactConfig, mu: float, compliant: bool) -> ProximityP
     return props
 
 
-def add_table(plant: MultibodyPlant, contact: ContactConfig, size=(1.0, 1.0), thickness=0.05, name="table",
-              collision: str = "halfspace", X_WT: RigidTransform | None = None):
+def add_table(
+    plant: MultibodyPlant,
+    contact: ContactConfig,
+    size=(1.0, 1.0),
+    thickness=0.05,
+    name="table",
+    collision: str = "halfspace",
+    X_WT: RigidTransform | None = None,
+):
     """A rigid table whose top is the plane z = 0 of the table frame T (by default the world).
 
     Collision is a rigid half-space (``collision="halfspace"``; 40 % cheaper per step than a
@@ -130,8 +137,15 @@ def add_table(plant: MultibodyPlant, contact: ContactConfig, size=(1.0, 1.0), th
     return body
 
 
-def add_bin(plant: MultibodyPlant, contact: ContactConfig, X_WB: RigidTransform,
-            inner=(0.25, 0.20), depth=0.10, wall=0.01, name="bin"):
+def add_bin(
+    plant: MultibodyPlant,
+    contact: ContactConfig,
+    X_WB: RigidTransform,
+    inner=(0.25, 0.20),
+    depth=0.10,
+    wall=0.01,
+    name="bin",
+):
     """An open-top bin welded to the world: a floor and four walls (rigid)."""
     body = plant.world_body()
     lx, ly = inner
@@ -167,7 +181,9 @@ def add_prism(plant: MultibodyPlant, shape, name: str, contact: ContactConfig):
     instance = plant.AddModelInstance(name)
     convex = Convex(prism_points(shape), name)
     body = plant.AddRigidBody(name, instance, CalcSpatialInertia(convex, shape.density))
-    plant.RegisterCollisionGeometry(body, RigidTransform(), convex, name, _proximity(contact, contact.mu_object, True))
+    plant.RegisterCollisionGeometry(
+        body, RigidTransform(), convex, name, _proximity(contact, contact.mu_object, True)
+    )
     plant.RegisterVisualGeometry(body, RigidTransform(), convex, name, np.array(shape.color))
     return body
 
@@ -182,8 +198,14 @@ class GripperHandles:
     geometry: GripperGeometry
 
 
-def add_gripper_fingers(plant: MultibodyPlant, instance, palm, gripper: GripperGeometry,
-                        physics: GripperPhysics, contact: ContactConfig):
+def add_gripper_fingers(
+    plant: MultibodyPlant,
+    instance,
+    palm,
+    gripper: GripperGeometry,
+    physics: GripperPhysics,
+    contact: ContactConfig,
+):
     """Two finger plates on prismatic joints along the palm's x (the closing axis), each with a
     PD-controlled actuator whose effort limit is the grip force. Palm frame: origin between the
     plates at the height of their top faces, z up. Joint positions are the plates' centre x:
@@ -196,11 +218,15 @@ def add_gripper_fingers(plant: MultibodyPlant, instance, palm, gripper: GripperG
             f"{side}_finger", instance, SpatialInertia.SolidBoxWithMass(physics.finger_mass, t, w, h)
         )
         X = RigidTransform([0.0, 0.0, -h / 2])
-        plant.RegisterCollisionGeometry(body, X, box, f"{side}_finger", _proximity(contact, contact.mu_finger, False))
+        plant.RegisterCollisionGeometry(
+            body, X, box, f"{side}_finger", _proximity(contact, contact.mu_finger, False)
+        )
         plant.RegisterVisualGeometry(body, X, box, f"{side}_finger", np.array([0.15, 0.15, 0.15, 1.0]))
         lo, hi = (-gripper.opening / 2, -t / 2) if sign < 0 else (t / 2, gripper.opening / 2)
         joint = plant.AddJoint(
-            PrismaticJoint(f"{side}_finger_joint", palm.body_frame(), body.body_frame(), [1.0, 0.0, 0.0], lo, hi)
+            PrismaticJoint(
+                f"{side}_finger_joint", palm.body_frame(), body.body_frame(), [1.0, 0.0, 0.0], lo, hi
+            )
         )
         act = plant.AddJointActuator(f"{side}_finger_motor", joint, physics.force_limit)
         act.set_controller_gains(PdControllerGains(p=physics.finger_kp, d=physics.finger_kd))
@@ -208,8 +234,9 @@ def add_gripper_fingers(plant: MultibodyPlant, instance, palm, gripper: GripperG
     return fingers
 
 
-def add_gantry_gripper(plant: MultibodyPlant, gripper: GripperGeometry, physics: GripperPhysics,
-                       contact: ContactConfig) -> GripperHandles:
+def add_gantry_gripper(
+    plant: MultibodyPlant, gripper: GripperGeometry, physics: GripperPhysics, contact: ContactConfig
+) -> GripperHandles:
     """An arm-less verifier gripper: prismatic x, y, z and revolute yaw carriages (gravity off,
     PD-controlled), carrying the palm and the two finger plates."""
     instance = plant.AddModelInstance("gripper")
@@ -229,8 +256,13 @@ def add_gantry_gripper(plant: MultibodyPlant, gripper: GripperGeometry, physics:
     ):
         a = plant.AddJointActuator(f"{j.name()}_motor", j, 1e4)
         a.set_controller_gains(PdControllerGains(p=kp, d=kd))
-    plant.RegisterVisualGeometry(palm, RigidTransform([0, 0, 0.015]), Box(gripper.opening + gripper.plate_thickness,
-                                 gripper.plate_width * 2, 0.03), "palm", np.array([0.3, 0.3, 0.3, 0.6]))
+    plant.RegisterVisualGeometry(
+        palm,
+        RigidTransform([0, 0, 0.015]),
+        Box(gripper.opening + gripper.plate_thickness, gripper.plate_width * 2, 0.03),
+        "palm",
+        np.array([0.3, 0.3, 0.3, 0.6]),
+    )
     (left, jl), (right, jr) = add_gripper_fingers(plant, instance, palm, gripper, physics, contact)
     plant.set_gravity_enabled(instance, False)
     return GripperHandles(instance, palm, left, right, [jx, jy, jz, jyaw, jl, jr], gripper)

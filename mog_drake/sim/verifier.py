@@ -44,14 +44,23 @@ class VerifierConfig:
     lifted_fraction: float = 0.5  # an object is lifted if it rose by this fraction of the lift
     wall_budget: float = 10.0  # s of computation per check before it is abandoned
     reach_margin: float = 0.02  # m, extra radius when choosing which objects to simulate
+    # Stop a check as soon as its failure is certain: during the lift, once the fingers'
+    # bottom is above the top of a group object still resting near the table, that object
+    # can never be lifted (the gripper only rises from then on). Same verdict, less time.
+    early_exit: bool = True
 
     def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
         t_close0 = self.settle_time
         t_close1 = t_close0 + (gripper.opening - gripper.plate_thickness) / 2 / self.physics.close_speed
         t_lift0 = t_close1 + self.squeeze_time
         t_lift1 = t_lift0 + self.lift_height / self.lift_speed
-        return {"close0": t_close0, "close1": t_close1, "lift0": t_lift0, "lift1": t_lift1,
-                "end": t_lift1 + self.hold_time}
+        return {
+            "close0": t_close0,
+            "close1": t_close1,
+            "lift0": t_lift0,
+            "lift1": t_lift1,
+            "end": t_lift1 + self.hold_time,
+        }
 
 
 def _smooth(s: float) -> tuple[float, float]:
@@ -126,11 +135,17 @@ class _GroupSim:
         self.gripper = add_gantry_gripper(plant, gripper, config.physics, config.contact)
         plant.Finalize()
         filter_gripper_self_collisions(
-            plant, scene_graph, [plant.GetBodyByName(n, self.gripper.instance) for n in
-                                 ("carriage_x", "carriage_y", "carriage_z", "palm", "left_finger", "right_finger")]
+            plant,
+            scene_graph,
+            [
+                plant.GetBodyByName(n, self.gripper.instance)
+                for n in ("carriage_x", "carriage_y", "carriage_z", "palm", "left_finger", "right_finger")
+            ],
         )
         self.script = builder.AddSystem(GraspScript(gripper, config))
-        builder.Connect(self.script.get_output_port(), plant.get_desired_state_input_port(self.gripper.instance))
+        builder.Connect(
+            self.script.get_output_port(), plant.get_desired_state_input_port(self.gripper.instance)
+        )
         self.meshcat = meshcat
         if meshcat is not None:
             from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
@@ -144,6 +159,8 @@ class _GroupSim:
         self.script_context = self.script.GetMyMutableContextFromRoot(self.context)
         self.default_context = self.context.Clone()
         self.poses = {i: scene.objects[i].pose for i in ids}
+        # Highest point of each prism above its body origin, however it is tilted.
+        self.heights = {i: float(np.hypot(scene.shape(i).radius, scene.shape(i).height)) for i in ids}
         self.table = scene.table
         self.build_time = time.perf_counter() - t0
 
@@ -156,8 +173,9 @@ class DrakeVerifier:
     gives success=False with an error saying what happened.
     """
 
-    def __init__(self, config: VerifierConfig | None = None, gripper: GripperGeometry | None = None,
-                 meshcat=None):
+    def __init__(
+        self, config: VerifierConfig | None = None, gripper: GripperGeometry | None = None, meshcat=None
+    ):
         self.config = config or VerifierConfig()
         self.gripper = gripper or GripperGeometry()
         self.meshcat = meshcat
@@ -166,7 +184,11 @@ class DrakeVerifier:
 
     def _sim_for(self, scene, group) -> tuple[_GroupSim, bool]:
         ids = objects_in_reach(scene, group, self.gripper, self.config.reach_margin)
-        key = (tuple((scene.objects[i].shape, scene.objects[i].pose) for i in ids), tuple(ids), id(scene.library))
+        key = (
+            tuple((scene.objects[i].shape, scene.objects[i].pose) for i in ids),
+            tuple(ids),
+            id(scene.library),
+        )
         if self._sim is not None and key == self._cache_key:
             return self._sim, False
         self._sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat)
@@ -194,18 +216,30 @@ class DrakeVerifier:
         g = self.gripper
         for joint, q in zip(j, (grasp[0], grasp[1], z0, grasp[2], -g.opening / 2, g.opening / 2)):
             joint.set_translation(pc, q) if hasattr(joint, "set_translation") else joint.set_angle(pc, q)
-        t_end = cfg.timeline(g)["end"]
+        timeline = cfg.timeline(g)
+        t_end = timeline["end"]
         deadline = t0 + cfg.wall_budget
-        status = {"error": ""}
+        status = {"error": "", "early": ""}
+        group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
+        z_joint = j[2]
+        finger_h = cfg.physics.finger_height
 
         def monitor(root_context):
-            q = plant.GetPositions(plant.GetMyContextFromRoot(root_context))
+            t = root_context.get_time()
+            ctx = plant.GetMyContextFromRoot(root_context)
+            q = plant.GetPositions(ctx)
             if not np.all(np.isfinite(q)):
-                status["error"] = f"non-finite state at t = {root_context.get_time():.3f} s"
+                status["error"] = f"non-finite state at t = {t:.3f} s"
                 return EventStatus.Failed(None, status["error"])
             if time.perf_counter() > deadline:
-                status["error"] = f"wall-time budget of {cfg.wall_budget:g} s exceeded at t = {root_context.get_time():.3f} s"
+                status["error"] = f"wall-time budget of {cfg.wall_budget:g} s exceeded at t = {t:.3f} s"
                 return EventStatus.Failed(None, status["error"])
+            if cfg.early_exit and t > timeline["lift0"]:
+                finger_bottom = z_joint.get_translation(ctx) - finger_h
+                for i, body, top in group_bodies:
+                    if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top:
+                        status["early"] = f"object {i} left on the table"
+                        return EventStatus.ReachedTermination(None, status["early"])
             return EventStatus.Succeeded()
 
         sim.simulator.set_monitor(monitor)
@@ -215,16 +249,21 @@ class DrakeVerifier:
             sim.simulator.Initialize()
             sim.simulator.AdvanceTo(t_end)
         except Exception as e:  # solver failure or a monitor abort
-            msg = status["error"] or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
-            return GraspResult(False, sim_time=sim.context.get_time(), wall_time=time.perf_counter() - t0, error=msg)
+            msg = (
+                status["error"]
+                or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+            )
+            return GraspResult(
+                False, sim_time=sim.context.get_time(), wall_time=time.perf_counter() - t0, error=msg
+            )
         finally:
             sim.simulator.clear_monitor()
             if sim.meshcat is not None:
                 sim.meshcat.StopRecording()
                 sim.meshcat.PublishRecording()
-        return self._verdict(sim, group, t0)
+        return self._verdict(sim, group, t0, status["early"])
 
-    def _verdict(self, sim: _GroupSim, group, t0: float) -> GraspResult:
+    def _verdict(self, sim: _GroupSim, group, t0: float, early: str = "") -> GraspResult:
         cfg, plant, pc = self.config, sim.plant, sim.plant_context
         q = plant.GetPositions(pc)
         wall = time.perf_counter() - t0
@@ -244,7 +283,5 @@ class DrakeVerifier:
         opening = jr.get_translation(pc) - jl.get_translation(pc) - self.gripper.plate_thickness
         if errors:
             return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors))
-        success = all(int(i) in lifted for i in group)
+        success = not early and all(int(i) in lifted for i in group)
         return GraspResult(success, lifted, float(opening), t, wall)
-
-

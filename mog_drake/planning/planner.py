@@ -1,0 +1,146 @@
+"""GraspPlanner: Alg. 2 of the paper and its baselines (Sec. 6.2, 7.3). No Drake import.
+
+    grasp_cands <- GenGraspCands(x, group)
+    ranked      <- RankGraspCands(grasp_cands)
+    for u in ranked:
+        if not GraspFailure(x, u):            # the two necessary conditions
+            if CheckGraspSuccess(x, u):       # physics, through the Verifier protocol
+                return u
+    return {}
+
+Methods, exactly as the paper defines them:
+
+* ``gp``: rank by total intersection area A_T, filter by the conditions, then physics;
+* ``rand-phys``: random order, no filter: physics on every candidate until one succeeds;
+* ``rank-phys``: ranked order, no filter;
+* ``rand-fil-phys``: random order, filter, then physics;
+* ``single``: the single-object baseline: ``gp`` on one object of the group chosen at random.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.planning.protocol import GraspResult, Verifier
+
+METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
+_RANKED = {"gp": True, "rand-phys": False, "rank-phys": True, "rand-fil-phys": False, "single": True}
+_FILTERED = {"gp": True, "rand-phys": False, "rank-phys": False, "rand-fil-phys": True, "single": True}
+
+
+@dataclass
+class PlannerConfig:
+    method: str = "gp"
+    n_positions: int = 70  # Np
+    n_orientations: int = 7  # Ntheta
+    max_physics: int | None = None  # stop after this many physics checks (None: never)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise MogError(f"unknown planner method '{self.method}' (known: {', '.join(METHODS)})")
+        if self.n_positions < 1 or self.n_orientations < 1:
+            raise MogError("n_positions and n_orientations must be at least 1")
+
+
+@dataclass
+class PlanResult:
+    """What GraspPlanner.plan returns. ``grasp`` is None when no candidate succeeded."""
+
+    method: str
+    group: tuple[int, ...]
+    grasp: np.ndarray | None
+    candidates: int  # collision-free candidates generated
+    passed_conditions: int  # of those, how many pass both conditions (computed when filtering or ranking)
+    tested: int  # candidates simulated in physics
+    times: dict[str, float] = field(default_factory=dict)  # candidates, filter, rank, physics, total (s)
+    result: GraspResult | None = None  # physics result of the returned grasp (or the last tested)
+    tested_indices: list[int] = field(default_factory=list)  # candidate indices in the order simulated
+    candidate_grasps: np.ndarray | None = None
+
+    @property
+    def found(self) -> bool:
+        return self.grasp is not None
+
+    def to_dict(self) -> dict:
+        return {
+            "method": self.method,
+            "group": list(self.group),
+            "found": self.found,
+            "grasp": None if self.grasp is None else [float(v) for v in self.grasp],
+            "candidates": self.candidates,
+            "passed_conditions": self.passed_conditions,
+            "tested": self.tested,
+            "times": self.times,
+            "lifted": None if self.result is None else self.result.lifted,
+            "physics_error": None if self.result is None else self.result.error,
+        }
+
+
+class GraspPlanner:
+    """Alg. 2 and its baselines over any `Verifier` (the Drake one, or a test double)."""
+
+    def __init__(
+        self, verifier: Verifier, config: PlannerConfig | None = None, gripper: GripperGeometry | None = None
+    ):
+        self.verifier = verifier
+        self.config = config or PlannerConfig()
+        self.gripper = gripper or GripperGeometry()
+
+    def plan(
+        self, scene, group, rng: np.random.Generator | None = None, method: str | None = None
+    ) -> PlanResult:
+        method = method or self.config.method
+        if method not in METHODS:
+            raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
+        group = tuple(int(g) for g in group)
+        if not group:
+            raise MogError("the group to grasp is empty")
+        if (not _RANKED[method] or method == "single") and rng is None:
+            raise MogError(f"method '{method}' draws at random: pass a seeded numpy Generator")
+        if method == "single":
+            group = (group[int(rng.integers(len(group)))],)
+        cfg = self.config
+        t_start = time.perf_counter()
+        polys = scene.polygons()
+
+        t = time.perf_counter()
+        cands = gen_grasp_cands(polys, group, self.gripper, cfg.n_positions, cfg.n_orientations)
+        times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
+
+        passed = None
+        n_passed = -1
+        if _RANKED[method] or _FILTERED[method]:
+            t = time.perf_counter()
+            ev = evaluate_grasps(polys, group, cands, self.gripper)
+            passed = ev.passed
+            n_passed = int(passed.sum())
+            times["filter" if _FILTERED[method] else "rank"] += time.perf_counter() - t
+        if _RANKED[method]:
+            t = time.perf_counter()
+            order = rank_grasp_cands(ev)
+            times["rank"] += time.perf_counter() - t
+        else:
+            order = rng.permutation(len(cands))
+        if _FILTERED[method]:
+            t = time.perf_counter()
+            order = order[passed[order]]  # GraspFailure(): drop candidates violating a condition
+            times["filter"] += time.perf_counter() - t
+
+        grasp, last, tested = None, None, []
+        t = time.perf_counter()
+        for i in order:
+            if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
+                break
+            last = self.verifier.check(scene, group, cands[i])
+            tested.append(int(i))
+            if last.success:
+                grasp = cands[i].copy()
+                break
+        times["physics"] = time.perf_counter() - t
+        times["total"] = time.perf_counter() - t_start
+        return PlanResult(method, group, grasp, len(cands), n_passed, len(tested), times, last, tested, cands)

@@ -1,0 +1,115 @@
+import json
+
+import pytest
+
+from mog_drake.errors import MogError
+from mog_drake.experiments import conditions, planning_eval
+from mog_drake.experiments.stats import mean_ci, proportion_ci
+from mog_drake.experiments.sweep import check_params, load_results, run_sweep
+
+
+def test_sweep_resumes_without_redoing_finished_tasks(tmp_path):
+    calls = []
+
+    def worker(task):
+        calls.append(task["key"])
+        return {"key": task["key"], "value": task["n"] ** 2}
+
+    tasks = [{"key": f"t{i}", "n": i} for i in range(3)]
+    run_sweep(tasks, worker, tmp_path, progress=False)
+    more = tasks + [{"key": "t3", "n": 3}]
+    out = run_sweep(more, worker, tmp_path, progress=False)
+    assert calls == ["t0", "t1", "t2", "t3"]  # t0..t2 were not redone
+    assert [r["value"] for r in out] == [0, 1, 4, 9]
+
+
+def test_torn_last_line_is_dropped(tmp_path):
+    path = tmp_path / "results.jsonl"
+    path.write_text(json.dumps({"key": "a", "v": 1}) + "\n" + '{"key": "b", "v"')
+    assert set(load_results(path)) == {"a"}
+    assert path.read_text().endswith("\n")
+
+
+def test_a_folder_of_another_sweep_is_refused(tmp_path):
+    check_params(tmp_path, {"experiment": "conditions", "seed": 0, "scenes_per_class": 2})
+    check_params(tmp_path, {"experiment": "conditions", "seed": 0, "scenes_per_class": 5})  # growing is fine
+    with pytest.raises(MogError, match="seed=0"):
+        check_params(tmp_path, {"experiment": "conditions", "seed": 1, "scenes_per_class": 5})
+
+
+def test_stats():
+    m, h = mean_ci([1.0, 2.0, 3.0])
+    assert m == 2.0 and h == pytest.approx(4.303 * 1.0 / 3**0.5)
+    p, lo, hi = proportion_ci(8, 10)
+    assert p == 0.8 and lo < 0.8 < hi
+
+
+def test_tiny_conditions_sweep_end_to_end(tmp_path):
+    summary, results = conditions.run(
+        [2], 1, seed=3, out_dir=tmp_path, progress=False, n_positions=4, n_orientations=2
+    )
+    assert len(results) == 1 and results[0]["n_candidates"] == len(results[0]["candidates"]) > 0
+    row = summary["rows"][0]
+    for k in (
+        "negatives",
+        "positives",
+        "tn_area_pct",
+        "tn_diameter_pct",
+        "tn_either_pct",
+        "tn_both_pct",
+        "false_negatives",
+        "candidates_per_scene",
+    ):
+        assert k in row
+    assert row["negatives"] + row["positives"] == results[0]["n_candidates"]
+    assert summary["rows"][-1]["class"] == "all"
+    # Resuming an identical sweep recomputes nothing and gives the same summary.
+    again, _ = conditions.run(
+        [2], 1, seed=3, out_dir=tmp_path, progress=False, n_positions=4, n_orientations=2
+    )
+    assert json.dumps(again, sort_keys=True) == json.dumps(summary, sort_keys=True)
+
+
+def test_false_negatives_are_listed_with_a_replay():
+    fake = [
+        {
+            "class": 2,
+            "scene_seed": 2020001,
+            "n_candidates": 2,
+            "candidates": [
+                [
+                    0.0,
+                    0.0,
+                    0.0,
+                    False,
+                    True,
+                    True,
+                    "",
+                ],  # rejected by the diameter condition, lifted: false negative
+                [0.01, 0.0, 0.0, True, False, False, ""],  # rejected by area, failed: true negative
+            ],
+        }
+    ]
+    s = conditions.summarize(fake)
+    assert s["rows"][0]["false_negatives"] == 1 and s["rows"][0]["tn_area_pct"] == 100.0
+    fn = s["false_negatives"][0]
+    assert fn["scene_seed"] == 2020001 and "--seed 2020001" in fn["replay"] and "--simulate" in fn["replay"]
+
+
+def test_tiny_planner_sweep_end_to_end(tmp_path):
+    summary, results = planning_eval.run(
+        [2],
+        1,
+        seed=4,
+        out_dir=tmp_path,
+        methods=["gp", "rand-fil-phys"],
+        progress=False,
+        n_positions=4,
+        n_orientations=2,
+    )
+    rows = {r["method"]: r for r in summary["rows"] if r["class"] == "2"}
+    assert set(rows) == {"gp", "rand-fil-phys"}
+    for r in rows.values():
+        for k in ("time_s", "time_ci", "tested", "tested_ci", "found_pct", "gp_speedup"):
+            assert k in r
+    assert rows["gp"]["gp_speedup"] == pytest.approx(1.0)

@@ -1,0 +1,107 @@
+import math
+
+import numpy as np
+import pytest
+from conftest import make_scene
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.planning.planner import METHODS, GraspPlanner, PlannerConfig
+from mog_drake.planning.protocol import GraspResult
+from mog_drake.scenes import row_scene
+
+
+class FakeVerifier:
+    """Records every grasp it is asked about; succeeds only on the grasps in ``good``."""
+
+    def __init__(self, good=()):
+        self.good = [np.asarray(g) for g in good]
+        self.asked = []
+
+    def check(self, scene, group, grasp):
+        self.asked.append(np.asarray(grasp).copy())
+        ok = any(np.allclose(grasp, g) for g in self.good)
+        return GraspResult(ok, lifted=list(group) if ok else [])
+
+
+@pytest.fixture
+def scene():
+    return row_scene(3, np.random.default_rng(1))
+
+
+def _figures(scene):
+    polys = scene.polygons()
+    cands = gen_grasp_cands(polys, scene.group)
+    return cands, evaluate_grasps(polys, scene.group, cands)
+
+
+def _index(cands, g):
+    return int(np.flatnonzero(np.all(np.isclose(cands, g), axis=1))[0])
+
+
+def test_rand_fil_phys_never_tests_a_filtered_candidate(scene):
+    cands, ev = _figures(scene)
+    v = FakeVerifier()  # nothing succeeds: every admissible candidate gets tested
+    res = GraspPlanner(v, PlannerConfig("rand-fil-phys")).plan(scene, scene.group, np.random.default_rng(0))
+    tested = [_index(cands, g) for g in v.asked]
+    assert len(tested) == res.tested == int(ev.passed.sum()) > 0
+    assert all(ev.passed[i] for i in tested)
+    assert not res.found
+
+
+def test_rank_phys_tests_in_ranked_order_without_filter(scene):
+    cands, ev = _figures(scene)
+    v = FakeVerifier()
+    res = GraspPlanner(v, PlannerConfig("rank-phys", max_physics=40)).plan(scene, scene.group)
+    tested = [_index(cands, g) for g in v.asked]
+    assert tested == list(rank_grasp_cands(ev)[:40]) and res.tested == 40
+    assert any(not ev.passed[i] for i in tested)  # no filter: rejected candidates are simulated too
+
+
+def test_gp_stops_at_first_success_in_ranked_filtered_order(scene):
+    cands, ev = _figures(scene)
+    admissible = [int(i) for i in rank_grasp_cands(ev) if ev.passed[i]]
+    assert len(admissible) >= 3
+    v = FakeVerifier(good=[cands[admissible[2]]])
+    res = GraspPlanner(v, PlannerConfig("gp")).plan(scene, scene.group)
+    assert [_index(cands, g) for g in v.asked] == admissible[:3]
+    assert res.found and res.tested == 3 and np.allclose(res.grasp, cands[admissible[2]])
+    assert set(res.times) == {"candidates", "filter", "rank", "physics", "total"}
+
+
+def test_random_methods_are_seeded(scene):
+    runs = []
+    for seed in (5, 5, 6):
+        v = FakeVerifier()
+        GraspPlanner(v, PlannerConfig("rand-phys", max_physics=10)).plan(
+            scene, scene.group, np.random.default_rng(seed)
+        )
+        runs.append(np.array(v.asked))
+    assert np.array_equal(runs[0], runs[1]) and not np.array_equal(runs[0], runs[2])
+    with pytest.raises(MogError, match="seeded"):
+        GraspPlanner(FakeVerifier(), PlannerConfig("rand-phys")).plan(scene, scene.group)
+
+
+def test_single_mode_plans_for_one_object(scene):
+    res = GraspPlanner(FakeVerifier(), PlannerConfig("single")).plan(
+        scene, scene.group, np.random.default_rng(2)
+    )
+    assert len(res.group) == 1 and res.group[0] in scene.group
+
+
+def test_unknown_method_refused():
+    with pytest.raises(MogError, match="unknown planner method 'magic'"):
+        PlannerConfig("magic")
+    assert set(METHODS) >= {"gp", "rand-phys", "rank-phys", "rand-fil-phys"}
+
+
+def test_gp_grasp_is_confirmed_by_physics():
+    from mog_drake.sim.verifier import DrakeVerifier
+
+    scene = make_scene(
+        [("thick_bar", -0.012, 0.0, math.pi / 2), ("small_yellow_cube", 0.010, 0.002, 0.1)], group=(0, 1)
+    )
+    res = GraspPlanner(DrakeVerifier()).plan(scene, (0, 1))
+    assert res.found and res.tested >= 1
+    again = DrakeVerifier().check(scene, (0, 1), res.grasp)
+    assert again.success and again.lifted == [0, 1]
