@@ -77,7 +77,7 @@ def test_identical_inputs_identical_outcomes():
 @pytest.mark.parametrize(
     "config,msg",
     [
-        (VerifierConfig(contact=ContactConfig(time_step=0.1)), "left the table"),
+        (VerifierConfig(contact=ContactConfig(time_step=0.1)), "left the table"),  # absurd step
         (VerifierConfig(contact=ContactConfig(hydroelastic_modulus=1e3)), "left the table"),
         (VerifierConfig(wall_budget=1e-4), "wall-time budget"),
     ],
