@@ -105,3 +105,41 @@ def test_gp_grasp_is_confirmed_by_physics():
     assert res.found and res.tested >= 1
     again = DrakeVerifier().check(scene, (0, 1), res.grasp)
     assert again.success and again.lifted == [0, 1]
+
+
+def test_next_pick_tries_largest_groups_first_and_reports_clear():
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+
+    # Three bars in a tight row (one group of 3) and a cube far away (a single).
+    scene = make_scene(
+        [
+            ("thin_bar", -0.012, 0.0, math.pi / 2),
+            ("thin_bar", 0.0, 0.0, math.pi / 2),
+            ("thin_bar", 0.012, 0.0, math.pi / 2),
+            ("small_yellow_cube", 0.15, 0.15, 0.0),
+        ]
+    )
+    v = FakeVerifier()  # nothing lifts: every group is tried, largest first
+    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp")))
+    assert d.status == "no_grasp"
+    assert [p.group for p in d.plans][0] == (0, 1, 2)
+    assert [len(p.group) for p in d.plans] == sorted((len(p.group) for p in d.plans), reverse=True)
+    assert next_pick(Scene([], scene.library), GraspPlanner(v)).status == "table_clear"
+
+
+def test_next_pick_single_object_mode_plans_single_objects():
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene([("thin_bar", -0.012, 0.0, math.pi / 2), ("thin_bar", 0.0, 0.0, math.pi / 2)])
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            return GraspResult(True, lifted=list(group))
+
+    v = LiftsAnything()
+    d = next_pick(scene, GraspPlanner(v), mode="sog", rng=np.random.default_rng(0))
+    assert d.status == "grasp" and len(d.group) == 1 and all(len(g) == 1 for g in v.asked)
+    with pytest.raises(MogError, match="mode"):
+        next_pick(scene, GraspPlanner(v), mode="both")

@@ -19,7 +19,9 @@ def test_urdf_kinematics_equal_the_dh_parameters():
     ctx = plant.CreateDefaultContext()
     for q in np.random.default_rng(0).uniform(-np.pi, np.pi, (10, 6)):
         plant.SetPositions(ctx, q)
-        X = plant.CalcRelativeTransform(ctx, plant.world_frame(), plant.GetFrameByName("tool0")).GetAsMatrix4()
+        X = plant.CalcRelativeTransform(
+            ctx, plant.world_frame(), plant.GetFrameByName("tool0")
+        ).GetAsMatrix4()
         np.testing.assert_allclose(X, forward_kinematics(q), atol=1e-7)
     np.testing.assert_allclose(plant.GetVelocityUpperLimits(), VELOCITY_LIMIT)
     np.testing.assert_allclose(plant.GetPositionUpperLimits(), 2 * np.pi, rtol=1e-8)

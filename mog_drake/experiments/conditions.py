@@ -34,8 +34,8 @@ def row_tasks(
             "n_positions": n_positions,
             "n_orientations": n_orientations,
         }
-        for c in classes
         for k in range(scenes_per_class)
+        for c in classes
     ]
 
 

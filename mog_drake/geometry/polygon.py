@@ -76,6 +76,16 @@ def polygon_area(vertices: np.ndarray) -> float:
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 
+def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
+    """Area centroid of a simple polygon."""
+    v = np.asarray(vertices, dtype=float)
+    x, y = v[:, 0], v[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    a = cross.sum() / 2
+    return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * a)
+
+
 def edge_directions(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit edge directions and outward unit normals of a CCW polygon (edge i: v_i -> v_i+1)."""
     v = np.asarray(vertices, dtype=float)

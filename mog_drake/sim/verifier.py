@@ -210,7 +210,7 @@ class DrakeVerifier:
         sim.context.SetTimeStateAndParametersFrom(sim.default_context)
         sim.script.set_grasp(sim.script_context, grasp)
         for i, body in sim.bodies.items():
-            plant.SetFreeBodyPose(pc, body, pose_to_transform(*sim.poses[i]))
+            plant.SetFloatingBaseBodyPoseInWorldFrame(pc, body, pose_to_transform(*sim.poses[i]))
         j = sim.gripper.joints
         z0 = sim.script.z_grasp
         g = self.gripper

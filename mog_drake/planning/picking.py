@@ -1,0 +1,86 @@
+"""One step of the picking algorithm (paper Alg. 1, Sec. 6.1), and its single-object baseline.
+
+    obj_groups        <- CreateObjGroups(x)
+    ranked_obj_groups <- RankObjGroups(obj_groups)
+    for obj_group in ranked_obj_groups:
+        u <- GraspPlanner(x, obj_group)
+        if u != {}: execute u; break
+
+The outer loop (observe, execute, repeat until the table is clear or time is up) is the
+Planner and Controller systems' job; this module decides the next grasp for one observation.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS, create_obj_groups, rank_obj_groups
+from mog_drake.planning.planner import GraspPlanner, PlanResult
+
+MODES = ("mog", "sog")
+
+
+@dataclass
+class PickDecision:
+    """status: "grasp" (grasp and group set), "table_clear" or "no_grasp"."""
+
+    status: str
+    grasp: np.ndarray | None = None
+    group: tuple[int, ...] = ()
+    groups_tried: int = 0
+    physics_checks: int = 0
+    planning_time: float = 0.0
+    plans: list[PlanResult] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {
+            "status": self.status,
+            "grasp": None if self.grasp is None else [float(v) for v in self.grasp],
+            "group": list(self.group),
+            "groups_tried": self.groups_tried,
+            "physics_checks": self.physics_checks,
+            "planning_time": self.planning_time,
+        }
+
+
+def next_pick(
+    scene,
+    planner: GraspPlanner,
+    mode: str = "mog",
+    rng: np.random.Generator | None = None,
+    group_radius: float = DEFAULT_GROUP_RADIUS,
+) -> PickDecision:
+    """The next grasp for the objects of ``scene``.
+
+    mode "mog": Alg. 1, the largest groups first. mode "sog": the paper's single-object
+    baseline, the same planner restricted to one object chosen at random (objects are tried
+    in a random order until one has a grasp)."""
+    if mode not in MODES:
+        raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
+    t0 = time.perf_counter()
+    if len(scene) == 0:
+        return PickDecision("table_clear", planning_time=time.perf_counter() - t0)
+    polys = scene.polygons()
+    if mode == "mog":
+        groups = rank_obj_groups(
+            create_obj_groups(polys.centers, group_radius), polys.d_fmin, planner.gripper.w_g
+        )
+    else:
+        if rng is None:
+            raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
+        groups = [(int(i),) for i in rng.permutation(len(scene))]
+    decision = PickDecision("no_grasp")
+    for group in groups:
+        res = planner.plan(scene, group, rng=rng, method="gp")
+        decision.plans.append(res)
+        decision.groups_tried += 1
+        decision.physics_checks += res.tested
+        if res.found:
+            decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+            break
+    decision.planning_time = time.perf_counter() - t0
+    return decision

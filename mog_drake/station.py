@@ -1,0 +1,328 @@
+"""The station: a simulated UR5 + gripper + table + bin + prisms + overhead RGB-D camera.
+
+`MakeStation(scenario)` returns a Diagram whose exported ports are the contract that the
+hardware station honours too, so an application diagram is wired by name only:
+
+inputs
+    ur5.position              6   commanded joint positions (rad)
+    gripper.position          1   commanded inner jaw opening (m); 0 closes with the force limit
+outputs
+    ur5.position_measured     6   measured joint positions (rad)
+    gripper.state_measured    2   inner jaw opening (m) and its rate (m/s)
+    camera.rgb_image              RGBA8 image
+    camera.depth_image            32F depth image (m)
+simulation only (tests and scoring; the application never reads them)
+    camera.label_image            per-pixel geometry label
+    sim.body_poses                ground-truth body poses
+
+World frame = table frame: origin at the centre of the table top, z up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    MakeRenderEngineVtk,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+)
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.sensors import CameraInfo, RgbdSensor
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import GripperGeometry
+from mog_drake.sim.models import (
+    ContactConfig,
+    GripperPhysics,
+    add_bin,
+    add_gripper_fingers,
+    add_prism,
+    add_table,
+    filter_gripper_self_collisions,
+    pose_to_transform,
+)
+from mog_drake.sim.ur5 import URDF_PATH
+
+PORTS_IN = ("ur5.position", "gripper.position")
+PORTS_OUT = ("ur5.position_measured", "gripper.state_measured", "camera.rgb_image", "camera.depth_image")
+SIM_ONLY_PORTS = ("camera.label_image", "sim.body_poses")
+
+#: Fingertip plane below the flange along the tool axis (m): a 2F-85 on its coupling.
+FLANGE_TO_PALM = 0.110
+
+
+@dataclass
+class SceneSpec:
+    """Where the objects come from: a scene file, or a seeded generator."""
+
+    file: str = ""
+    kind: str = "cluttered"  # cluttered | row
+    seed: int = 0
+    inventory: str = "isrr33"
+    n_objects: int = 0  # 0: the whole inventory
+    row_class: int = 3
+
+
+@dataclass
+class RobotSpec:
+    # x, y, yaw of the UR5 base; yaw pi turns the DH zero pose (arm along -x) towards the table.
+    base: list[float] = field(default_factory=lambda: [-0.50, 0.0, 3.14159265])
+    home: list[float] = field(
+        default_factory=lambda: [0.0, -1.9, 1.9, -1.571, -1.571, 0.0]
+    )  # observe pose (rad)
+    max_joint_speed: float = 3.14  # rad/s (the UR5 does 180 deg/s)
+    max_joint_acceleration: float = 3.14  # rad/s^2
+    kp: float = 4000.0
+    kd: float = 400.0
+
+
+@dataclass
+class BinSpec:
+    center: list[float] = field(default_factory=lambda: [-0.25, 0.38])
+    inner: list[float] = field(default_factory=lambda: [0.24, 0.18])
+    depth: float = 0.10
+
+
+@dataclass
+class CameraSpec:
+    """An overhead pinhole RGB-D camera looking straight down at the table."""
+
+    position: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.80])
+    yaw: float = 0.0  # rotation about the vertical (rad)
+    width: int = 640
+    height: int = 480
+    fov_y_deg: float = 30.0  # 0.43 m of table over 480 rows: 0.9 mm per pixel
+    depth_min: float = 0.1
+    depth_max: float = 2.0
+
+    def X_WC(self) -> RigidTransform:
+        """Camera pose: optical z points down at the table, x along the table's x (rotated by yaw)."""
+        R = RotationMatrix.MakeZRotation(self.yaw) @ RotationMatrix(RollPitchYaw(np.pi, 0.0, 0.0))
+        return RigidTransform(R, self.position)
+
+    def info(self) -> CameraInfo:
+        return CameraInfo(self.width, self.height, np.radians(self.fov_y_deg))
+
+
+@dataclass
+class PlannerSpec:
+    method: str = "gp"
+    mode: str = "mog"  # mog | sog
+    n_positions: int = 70
+    n_orientations: int = 7
+    seed: int = 0
+
+
+@dataclass
+class Scenario:
+    """Everything a pick-and-place run depends on. Defaults run with no file at all."""
+
+    scene: SceneSpec = field(default_factory=SceneSpec)
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    bin: BinSpec = field(default_factory=BinSpec)
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    gripper: GripperPhysics = field(default_factory=GripperPhysics)
+    planner: PlannerSpec = field(default_factory=PlannerSpec)
+    table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])
+    time_limit: float = 600.0  # s of simulated robot time
+    hardware: bool = False
+
+
+def load_scenario(path: str | None = None) -> Scenario:
+    """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""
+    if not path:
+        return Scenario()
+    try:
+        return yaml_load_typed(schema=Scenario, filename=str(path), defaults=Scenario())
+    except RuntimeError as e:
+        raise MogError(f"{path}: {str(e).splitlines()[0]}") from None
+
+
+class _GripperCommand(LeafSystem):
+    """ur5.position (6) + gripper.position (1) -> desired state (8 positions, 8 velocities) of the
+    arm's and fingers' PD actuators."""
+
+    def __init__(self, gripper: GripperGeometry):
+        super().__init__()
+        self._t = gripper.plate_thickness
+        self._max = gripper.opening - gripper.plate_thickness
+        self.DeclareVectorInputPort("ur5.position", 6)
+        self.DeclareVectorInputPort("gripper.position", 1)
+        self.DeclareVectorOutputPort("desired_state", 16, self._calc)
+
+    def _calc(self, context, output) -> None:
+        q = self.get_input_port(0).Eval(context)
+        w = float(np.clip(self.get_input_port(1).Eval(context)[0], 0.0, self._max))
+        half = w / 2 + self._t / 2
+        output.SetFromVector(np.concatenate([q, [-half, half], np.zeros(8)]))
+
+
+class _GripperState(LeafSystem):
+    """Plant state -> (inner jaw opening, its rate)."""
+
+    def __init__(self, plant, left, right, thickness: float):
+        super().__init__()
+        self._plant = plant
+        self._l, self._r, self._t = left, right, thickness
+        self._n = plant.num_multibody_states()
+        self.DeclareVectorInputPort("state", self._n)
+        self.DeclareVectorOutputPort("gripper.state_measured", 2, self._calc)
+        self._ctx = plant.CreateDefaultContext()
+
+    def _calc(self, context, output) -> None:
+        self._plant.SetPositionsAndVelocities(self._ctx, self.get_input_port(0).Eval(context))
+        w = self._r.get_translation(self._ctx) - self._l.get_translation(self._ctx) - self._t
+        wd = self._r.get_translation_rate(self._ctx) - self._l.get_translation_rate(self._ctx)
+        output.SetFromVector([w, wd])
+
+
+class _ArmPositions(LeafSystem):
+    def __init__(self, n_state_robot: int):
+        super().__init__()
+        self.DeclareVectorInputPort("state", n_state_robot)
+        self.DeclareVectorOutputPort(
+            "ur5.position_measured", 6, lambda c, o: o.SetFromVector(self.get_input_port(0).Eval(c)[:6])
+        )
+
+
+def scene_from_spec(spec: SceneSpec, table):
+    import numpy as _np
+
+    from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
+
+    if spec.file:
+        return Scene.load(spec.file)
+    rng = _np.random.default_rng(spec.seed)
+    if spec.kind == "row":
+        return row_scene(spec.row_class, rng)
+    if spec.kind == "cluttered":
+        return cluttered_scene(
+            rng, inventory=spec.inventory, n_objects=spec.n_objects or None, params=ClutterParams()
+        )
+    raise MogError(f"scene kind must be 'cluttered' or 'row', got {spec.kind!r}")
+
+
+class StationHandles:
+    """What tests and the simulation driver may need beyond the ports."""
+
+    def __init__(self, plant, scene_graph, robot, bodies, scene, gripper_joints):
+        self.plant = plant
+        self.scene_graph = scene_graph
+        self.robot = robot
+        self.bodies = bodies
+        self.scene = scene
+        self.gripper_joints = gripper_joints
+
+
+def MakeStation(scenario: Scenario, scene=None, meshcat=None):
+    """Builds the simulated station (see the module doc for its ports). Returns (diagram,
+    handles). The hardware station (``scenario.hardware``) lives in mog_drake.hardware."""
+    if scenario.hardware:
+        raise MogError("the hardware station is not available in this build: run in simulation")
+    scene = scene or scene_from_spec(scenario.scene, scenario.table)
+    gripper = GripperGeometry()
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(scenario.contact.plant_config(), builder)
+    x0, x1, y0, y1 = scenario.table
+    X_table = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
+    add_table(plant, scenario.contact, size=(x1 - x0 + 0.6, y1 - y0 + 0.4), X_WT=X_table)
+    add_bin(
+        plant,
+        scenario.contact,
+        RigidTransform([*scenario.bin.center, 0.0]),
+        inner=tuple(scenario.bin.inner),
+        depth=scenario.bin.depth,
+    )
+
+    robot = Parser(plant).AddModels(str(URDF_PATH))[0]
+    bx, by, byaw = scenario.robot.base
+    plant.WeldFrames(
+        plant.world_frame(),
+        plant.GetFrameByName("base_link", robot),
+        RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]),
+    )
+    for idx in plant.GetJointActuatorIndices(robot):
+        plant.get_joint_actuator(idx).set_controller_gains(
+            PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
+        )
+    # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
+    from pydrake.multibody.tree import SpatialInertia
+
+    palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
+    plant.WeldFrames(
+        plant.GetFrameByName("tool0", robot),
+        palm.body_frame(),
+        RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, FLANGE_TO_PALM]),
+    )
+    from pydrake.geometry import Box
+
+    plant.RegisterVisualGeometry(
+        palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
+    )
+    (left, jl), (right, jr) = add_gripper_fingers(
+        plant, robot, palm, gripper, scenario.gripper, scenario.contact
+    )
+    plant.set_gravity_enabled(robot, False)  # a position-controlled arm tracks its command
+
+    bodies = {i: add_prism(plant, scene.shape(i), f"object_{i}", scenario.contact) for i in range(len(scene))}
+    plant.Finalize()
+    filter_gripper_self_collisions(
+        plant, scene_graph, [palm, left, right, plant.GetBodyByName("link_6", robot)]
+    )
+    for i, body in bodies.items():
+        plant.SetDefaultFloatingBaseBodyPose(body, pose_to_transform(*scene.objects[i].pose))
+    q_home = np.array(scenario.robot.home, dtype=float)
+    for k, idx in enumerate(plant.GetJointIndices(robot)[:6]):
+        plant.get_mutable_joint(idx).set_default_positions([q_home[k]])
+    jl.set_default_translation(-gripper.opening / 2)
+    jr.set_default_translation(gripper.opening / 2)
+
+    cmd = builder.AddSystem(_GripperCommand(gripper))
+    builder.Connect(cmd.get_output_port(), plant.get_desired_state_input_port(robot))
+    builder.ExportInput(cmd.get_input_port(0), "ur5.position")
+    builder.ExportInput(cmd.get_input_port(1), "gripper.position")
+    arm = builder.AddSystem(_ArmPositions(plant.num_multibody_states(robot)))
+    builder.Connect(plant.get_state_output_port(robot), arm.get_input_port())
+    builder.ExportOutput(arm.get_output_port(), "ur5.position_measured")
+    gs = builder.AddSystem(_GripperState(plant, jl, jr, gripper.plate_thickness))
+    builder.Connect(plant.get_state_output_port(), gs.get_input_port())
+    builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
+
+    cam = scenario.camera
+    scene_graph.AddRenderer("vtk", MakeRenderEngineVtk(RenderEngineVtkParams()))
+    core = RenderCameraCore("vtk", cam.info(), ClippingRange(0.05, 5.0), RigidTransform())
+    sensor = builder.AddSystem(
+        RgbdSensor(
+            scene_graph.world_frame_id(),
+            cam.X_WC(),
+            ColorRenderCamera(core, False),
+            DepthRenderCamera(core, DepthRange(cam.depth_min, cam.depth_max)),
+        )
+    )
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
+    builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
+    builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")
+    builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, MeshcatVisualizerParams())
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram, StationHandles(plant, scene_graph, robot, bodies, scene, (jl, jr))
+
+
+__all__ = ["MakeStation", "Scenario", "load_scenario", "PORTS_IN", "PORTS_OUT", "BasicVector"]
