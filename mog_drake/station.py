@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.geometry import (
+    CollisionFilterDeclaration,
     ClippingRange,
     ColorRenderCamera,
     DepthRange,
@@ -38,6 +39,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
 from mog_drake.errors import MogError
@@ -52,7 +54,7 @@ from mog_drake.sim.models import (
     filter_gripper_self_collisions,
     pose_to_transform,
 )
-from mog_drake.sim.ur5 import URDF_PATH
+from mog_drake.sim.ur5 import JOINT_NAMES, URDF_PATH
 
 PORTS_IN = ("ur5.position", "gripper.position")
 PORTS_OUT = ("ur5.position_measured", "gripper.state_measured", "camera.rgb_image", "camera.depth_image")
@@ -78,9 +80,8 @@ class SceneSpec:
 class RobotSpec:
     # x, y, yaw of the UR5 base; yaw pi turns the DH zero pose (arm along -x) towards the table.
     base: list[float] = field(default_factory=lambda: [-0.50, 0.0, 3.14159265])
-    home: list[float] = field(
-        default_factory=lambda: [0.0, -1.9, 1.9, -1.571, -1.571, 0.0]
-    )  # observe pose (rad)
+    # Observe pose (rad): the palm at (-0.33, 0, 0.35) m, outside the camera's view.
+    home: list[float] = field(default_factory=lambda: [-0.692, -2.413, 1.965, -1.122, -1.573, -2.262])
     max_joint_speed: float = 3.14  # rad/s (the UR5 does 180 deg/s)
     max_joint_acceleration: float = 3.14  # rad/s^2
     kp: float = 4000.0
@@ -150,23 +151,23 @@ def load_scenario(path: str | None = None) -> Scenario:
         raise MogError(f"{path}: {str(e).splitlines()[0]}") from None
 
 
-class _GripperCommand(LeafSystem):
-    """ur5.position (6) + gripper.position (1) -> desired state (8 positions, 8 velocities) of the
-    arm's and fingers' PD actuators."""
+class _DesiredState(LeafSystem):
+    """Arm state [q, v] (12, the interpolated ur5.position) + gripper.position (1) -> desired
+    state (8 positions, 8 velocities) of the arm's and fingers' PD actuators."""
 
     def __init__(self, gripper: GripperGeometry):
         super().__init__()
         self._t = gripper.plate_thickness
         self._max = gripper.opening - gripper.plate_thickness
-        self.DeclareVectorInputPort("ur5.position", 6)
+        self.DeclareVectorInputPort("arm_state", 12)
         self.DeclareVectorInputPort("gripper.position", 1)
         self.DeclareVectorOutputPort("desired_state", 16, self._calc)
 
     def _calc(self, context, output) -> None:
-        q = self.get_input_port(0).Eval(context)
+        x = self.get_input_port(0).Eval(context)
         w = float(np.clip(self.get_input_port(1).Eval(context)[0], 0.0, self._max))
         half = w / 2 + self._t / 2
-        output.SetFromVector(np.concatenate([q, [-half, half], np.zeros(8)]))
+        output.SetFromVector(np.concatenate([x[:6], [-half, half], x[6:], [0.0, 0.0]]))
 
 
 class _GripperState(LeafSystem):
@@ -253,8 +254,9 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None):
         plant.GetFrameByName("base_link", robot),
         RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]),
     )
-    for idx in plant.GetJointActuatorIndices(robot):
-        plant.get_joint_actuator(idx).set_controller_gains(
+    # (GetJointActuatorIndices(instance) is empty before Finalize: look the motors up by name.)
+    for name in JOINT_NAMES:
+        plant.GetJointActuatorByName(f"{name}_motor", robot).set_controller_gains(
             PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
         )
     # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
@@ -278,8 +280,15 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None):
 
     bodies = {i: add_prism(plant, scene.shape(i), f"object_{i}", scenario.contact) for i in range(len(scene))}
     plant.Finalize()
-    filter_gripper_self_collisions(
-        plant, scene_graph, [palm, left, right, plant.GetBodyByName("link_6", robot)]
+    # The arm's links and gripper never collide with each other (self-collision is not
+    # modelled; the motion plans keep clear), nor the base and shoulder with the table they stand on.
+    arm_bodies = [plant.GetBodyByName(n, robot) for n in ["base_link"] + [f"link_{i}" for i in range(1, 7)]]
+    filter_gripper_self_collisions(plant, scene_graph, arm_bodies + [palm, left, right])
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeBetween(
+            plant.CollectRegisteredGeometries(arm_bodies[:2]),
+            plant.CollectRegisteredGeometries([plant.world_body()]),
+        )
     )
     for i, body in bodies.items():
         plant.SetDefaultFloatingBaseBodyPose(body, pose_to_transform(*scene.objects[i].pose))
@@ -289,9 +298,12 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None):
     jl.set_default_translation(-gripper.opening / 2)
     jr.set_default_translation(gripper.opening / 2)
 
-    cmd = builder.AddSystem(_GripperCommand(gripper))
+    # Commanded positions -> [q, v]: the velocity feed-forward a position-controlled arm has.
+    interp = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(6, plant.time_step(), True))
+    cmd = builder.AddSystem(_DesiredState(gripper))
+    builder.Connect(interp.get_output_port(), cmd.get_input_port(0))
     builder.Connect(cmd.get_output_port(), plant.get_desired_state_input_port(robot))
-    builder.ExportInput(cmd.get_input_port(0), "ur5.position")
+    builder.ExportInput(interp.get_input_port(), "ur5.position")
     builder.ExportInput(cmd.get_input_port(1), "gripper.position")
     arm = builder.AddSystem(_ArmPositions(plant.num_multibody_states(robot)))
     builder.Connect(plant.get_state_output_port(robot), arm.get_input_port())

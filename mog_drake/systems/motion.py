@@ -1,0 +1,139 @@
+"""UR5 motions for one pick: inverse kinematics to gripper poses, time-parameterised by TOPP-RA
+within the arm's joint velocity and acceleration limits.
+
+The gripper pose is its palm frame: z up, x along the closing axis, fingertips
+`finger_height` below. Descents and lifts are straight vertical lines (IK at several heights,
+joined by a cubic through them), so the open jaws come down beside the objects, never across.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import FixedOffsetFrame
+from pydrake.solvers import Solve
+from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial
+
+from mog_drake.errors import MogError
+from mog_drake.sim.ur5 import URDF_PATH
+
+
+@dataclass
+class MotionConfig:
+    hover: float = 0.12  # m, palm height above the grasp height before descending
+    lift: float = 0.15  # m
+    bin_clearance: float = 0.12  # m, fingertips above the bin rim
+    finger_height: float = 0.040
+    finger_clearance: float = 0.002  # fingertips above the table at the grasp
+    levels: int = 5  # IK points on a vertical line
+
+
+class ArmMotion:
+    """IK and time parameterisation on an arm-only copy of the station's UR5."""
+
+    def __init__(self, base_xyyaw, flange_to_palm: float, max_speed: float, max_accel: float,
+                 config: MotionConfig | None = None):
+        self.config = config or MotionConfig()
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(URDF_PATH))
+        bx, by, byaw = base_xyyaw
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"),
+                         RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]))
+        self.palm = plant.AddFrame(FixedOffsetFrame(
+            "palm", plant.GetFrameByName("tool0"), RigidTransform(RotationMatrix.MakeXRotation(np.pi),
+                                                                  [0.0, 0.0, flange_to_palm])))
+        plant.Finalize()
+        self.plant = plant
+        self.context = plant.CreateDefaultContext()
+        self.vmax = max_speed
+        self.amax = max_accel
+
+    def palm_pose(self, q) -> RigidTransform:
+        self.plant.SetPositions(self.context, np.asarray(q, float))
+        return self.plant.CalcRelativeTransform(self.context, self.plant.world_frame(), self.palm)
+
+    def ik(self, position, yaw: float, q_seed, pos_tol: float = 2e-4, rot_tol: float = 2e-3) -> np.ndarray:
+        """Joint positions putting the palm at ``position`` with its x axis at ``yaw`` (z up)."""
+        ik = InverseKinematics(self.plant, with_joint_limits=True)
+        p = np.asarray(position, float)
+        ik.AddPositionConstraint(self.palm, np.zeros(3), self.plant.world_frame(), p - pos_tol, p + pos_tol)
+        ik.AddOrientationConstraint(self.plant.world_frame(), RotationMatrix.MakeZRotation(yaw), self.palm,
+                                    RotationMatrix(), rot_tol)
+        q = ik.q()
+        prog = ik.get_mutable_prog()
+        prog.AddQuadraticErrorCost(np.eye(6), np.asarray(q_seed, float), q)
+        prog.SetInitialGuess(q, np.asarray(q_seed, float))
+        result = Solve(prog)
+        if not result.is_success():
+            raise MogError(f"no arm configuration reaches the gripper pose {np.round(p, 3).tolist()} "
+                           f"yaw {np.degrees(yaw):.0f} deg")
+        return result.GetSolution(q)
+
+    def vertical(self, xy, z0: float, z1: float, yaw: float, q_seed) -> np.ndarray:
+        """IK at ``levels`` heights from z0 to z1 (each seeded by the previous): (levels, 6)."""
+        qs, q = [], np.asarray(q_seed, float)
+        for z in np.linspace(z0, z1, self.config.levels):
+            q = self.ik([xy[0], xy[1], z], yaw, q)
+            qs.append(q)
+        return np.array(qs)
+
+    def timed(self, waypoints) -> PathParameterizedTrajectory:
+        """A trajectory through joint waypoints (K, 6), at rest at both ends, time-optimal
+        under the joint velocity and acceleration limits (TOPP-RA)."""
+        W = np.asarray(waypoints, float)
+        if len(W) == 1:
+            W = np.vstack([W, W])
+        d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
+        if d[-1] < 1e-6:
+            return PathParameterizedTrajectory(PiecewisePolynomial.ZeroOrderHold([0.0, 1.0], W[:2].T),
+                                               PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], [[0.0, 1.0]]))
+        s = d / d[-1]
+        keep = np.concatenate([[True], np.diff(s) > 1e-9])
+        s, W = s[keep], W[keep]
+        path = (PiecewisePolynomial.CubicWithContinuousSecondDerivatives(s, W.T, np.zeros(6), np.zeros(6))
+                if len(s) > 2 else PiecewisePolynomial.FirstOrderHold(s, W.T))
+        grid = Toppra.CalcGridPoints(path, CalcGridPointsOptions())
+        toppra = Toppra(path, self.plant, grid)
+        toppra.AddJointVelocityLimit(-self.vmax * np.ones(6), self.vmax * np.ones(6))
+        toppra.AddJointAccelerationLimit(-self.amax * np.ones(6), self.amax * np.ones(6))
+        s_traj = toppra.SolvePathParameterization()
+        if s_traj is None:
+            raise MogError("TOPP-RA found no time parameterisation for the arm path")
+        return PathParameterizedTrajectory(path, s_traj)
+
+    def pick_plan(self, grasp, q_start, bin_xy, bin_height: float) -> dict:
+        """Joint trajectories of one attempt: start -> above the grasp -> down -> (close) -> up
+        -> above the bin -> (open) -> start. The grasp yaw is taken modulo pi, whichever turns
+        the wrist less. Raises MogError for a pose the arm cannot reach."""
+        cfg = self.config
+        z_grasp = cfg.finger_height + cfg.finger_clearance
+        z_above = z_grasp + cfg.hover
+        q_start = np.asarray(q_start, float)
+        best = None
+        for yaw in (grasp[2], grasp[2] + np.pi):
+            try:
+                q_above = self.ik([grasp[0], grasp[1], z_above], yaw, q_start)
+            except MogError:
+                continue
+            if best is None or np.abs(q_above - q_start).sum() < np.abs(best[1] - q_start).sum():
+                best = (yaw, q_above)
+        if best is None:
+            raise MogError(f"no arm configuration reaches above the grasp at {np.round(grasp[:2], 3).tolist()}")
+        yaw, q_above = best
+        down = self.vertical(grasp[:2], z_above, z_grasp, yaw, q_above)
+        up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])
+        z_bin = bin_height + cfg.bin_clearance + cfg.finger_height
+        q_bin = self.ik([bin_xy[0], bin_xy[1], z_bin], yaw, up[-1])
+        return {
+            "approach": self.timed([q_start, q_above, *down[1:]]),
+            "lift": self.timed(up),
+            "to_bin": self.timed([up[-1], q_bin]),
+            "home": self.timed([q_bin, q_start]),
+            "yaw": yaw,
+        }

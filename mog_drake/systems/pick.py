@@ -1,0 +1,135 @@
+"""The pick-and-place Diagram (station + Perception + Planner + Controller) and its runner."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario
+from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, PlannerSystem
+from mog_drake.systems.motion import ArmMotion, MotionConfig
+
+
+def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None):
+    """Wires the application to a station by port name. Returns (diagram, parts)."""
+    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+
+    station, handles = MakeStation(scenario, scene, meshcat)
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("station", station)
+    perception = builder.AddNamedSystem("perception", PerceptionSystem(scenario.camera, scenario.table,
+                                                                       handles.scene.library))
+    vcfg = VerifierConfig(contact=scenario.contact, physics=scenario.gripper)
+    planner = GraspPlanner(verifier or DrakeVerifier(vcfg),
+                           PlannerConfig(method="gp", n_positions=scenario.planner.n_positions,
+                                         n_orientations=scenario.planner.n_orientations))
+    planner_sys = builder.AddNamedSystem("planner", PlannerSystem(planner, scenario.planner.mode,
+                                                                  scenario.planner.seed))
+    motion = ArmMotion(scenario.robot.base, FLANGE_TO_PALM, scenario.robot.max_joint_speed,
+                       scenario.robot.max_joint_acceleration,
+                       MotionConfig(finger_height=scenario.gripper.finger_height,
+                                    finger_clearance=scenario.gripper.finger_clearance))
+    open_width = 0.075
+    close_time = open_width / 2 / scenario.gripper.close_speed + 0.2
+    controller = builder.AddNamedSystem("controller", ControllerSystem(
+        motion, scenario.robot.home, scenario.bin.center, scenario.bin.depth, open_width=open_width,
+        close_time=close_time, time_limit=scenario.time_limit))
+    builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
+    builder.Connect(station.GetOutputPort("camera.depth_image"), perception.GetInputPort("camera.depth_image"))
+    builder.Connect(controller.GetOutputPort("request"), perception.GetInputPort("request"))
+    builder.Connect(perception.GetOutputPort("scene"), planner_sys.GetInputPort("scene"))
+    builder.Connect(planner_sys.GetOutputPort("decision"), controller.GetInputPort("decision"))
+    builder.Connect(station.GetOutputPort("ur5.position_measured"), controller.GetInputPort("ur5.position_measured"))
+    builder.Connect(station.GetOutputPort("gripper.state_measured"), controller.GetInputPort("gripper.state_measured"))
+    builder.Connect(controller.GetOutputPort("ur5.position"), station.GetInputPort("ur5.position"))
+    builder.Connect(controller.GetOutputPort("gripper.position"), station.GetInputPort("gripper.position"))
+    diagram = builder.Build()
+    diagram.set_name("mog_drake_pick")
+    return diagram, {"station": station, "handles": handles, "perception": perception, "planner": planner_sys,
+                     "controller": controller}
+
+
+@dataclass
+class PickRun:
+    objects: int
+    attempts: list[dict] = field(default_factory=list)
+    in_bin: int = 0
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    finished: str = ""
+
+    def summary(self) -> dict:
+        n = len(self.attempts)
+        succ = [a for a in self.attempts if a["picked"] >= 1]
+        planning = sum(a["planning_time"] for a in self.attempts)
+        robot_time = self.sim_time
+        return {
+            "objects": self.objects,
+            "attempts": n,
+            "success_rate": len(succ) / n if n else float("nan"),
+            "picked_pct": 100.0 * self.in_bin / self.objects if self.objects else float("nan"),
+            "objects_per_success": (sum(a["picked"] for a in succ) / len(succ)) if succ else float("nan"),
+            "pph": 3600.0 * self.in_bin / (robot_time + planning) if robot_time + planning > 0 else float("nan"),
+            "robot_time_s": robot_time,
+            "planning_time_s": planning,
+            "wall_time_s": self.wall_time,
+            "finished": self.finished,
+        }
+
+
+def objects_in_bin(plant, plant_context, bodies, scenario: Scenario) -> list[int]:
+    """Scoring only (ground truth): objects whose centre lies inside the bin's walls."""
+    cx, cy = scenario.bin.center
+    hx, hy = scenario.bin.inner[0] / 2, scenario.bin.inner[1] / 2
+    out = []
+    for i, b in bodies.items():
+        p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
+        if abs(p[0] - cx) <= hx and abs(p[1] - cy) <= hy and p[2] < scenario.bin.depth + 0.05:
+            out.append(i)
+    return out
+
+
+def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, verifier=None) -> PickRun:
+    """Runs the diagram until the table is clear, no grasp is found, or the time limit."""
+    t0 = time.perf_counter()
+    diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier)
+    handles = parts["handles"]
+    controller = parts["controller"]
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    ctrl_ctx = controller.GetMyContextFromRoot(ctx)
+    plant_ctx = handles.plant.GetMyContextFromRoot(ctx)
+    run = PickRun(objects=len(handles.scene))
+    sim.Initialize()
+    if meshcat is not None:
+        meshcat.StartRecording()
+    done_attempts = 0
+    in_bin_before = 0
+    while True:
+        sim.AdvanceTo(ctx.get_time() + 0.25)
+        s = controller.state(ctrl_ctx)
+        while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
+            now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
+            a = dict(s.attempts[done_attempts])
+            a["picked"] = len(now) - in_bin_before
+            a["in_bin"] = len(now)
+            in_bin_before = len(now)
+            run.attempts.append(a)
+            done_attempts += 1
+            if on_attempt:
+                on_attempt(len(run.attempts), a)
+        if s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0:
+            run.finished = s.finished or "time limit"
+            break
+    if meshcat is not None:
+        meshcat.StopRecording()
+        meshcat.PublishRecording()
+    run.in_bin = len(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario))
+    run.sim_time = ctx.get_time()
+    run.wall_time = time.perf_counter() - t0
+    return run
