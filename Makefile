@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/mog-drake demo
+	$(BIN)/mog-drake pick --objects 10 --seed 0 --record out/pick.html
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

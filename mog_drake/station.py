@@ -18,15 +18,14 @@ simulation only (tests and scoring; the application never reads them)
 World frame = table frame: origin at the centre of the table top, z up.
 """
 
-from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.geometry import (
-    CollisionFilterDeclaration,
     ClippingRange,
+    CollisionFilterDeclaration,
     ColorRenderCamera,
     DepthRange,
     DepthRenderCamera,

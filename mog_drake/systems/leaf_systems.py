@@ -20,7 +20,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
-from mog_drake.perception import PerceptionConfig, Perceiver
+from mog_drake.perception import Perceiver, PerceptionConfig
 from mog_drake.planning.picking import PickDecision, next_pick
 
 

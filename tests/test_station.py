@@ -1,0 +1,155 @@
+"""The station's port contract, perception on rendered tables, the controller and the arm."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mog_drake.station import (
+    PORTS_IN,
+    PORTS_OUT,
+    SIM_ONLY_PORTS,
+    MakeStation,
+    Scenario,
+    SceneSpec,
+    load_scenario,
+)
+
+
+@pytest.fixture(scope="module")
+def station33():
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=11))
+    diagram, handles = MakeStation(sc)
+    return sc, diagram, handles
+
+
+def test_port_contract(station33):
+    _, d, _ = station33
+    inputs = {d.get_input_port(i).get_name() for i in range(d.num_input_ports())}
+    outputs = {d.get_output_port(i).get_name() for i in range(d.num_output_ports())}
+    assert inputs == set(PORTS_IN)
+    assert outputs == set(PORTS_OUT) | set(SIM_ONLY_PORTS)
+    assert d.GetInputPort("ur5.position").size() == 6 and d.GetInputPort("gripper.position").size() == 1
+    assert d.GetOutputPort("gripper.state_measured").size() == 2
+
+
+def test_arm_tracks_its_command_and_gripper_opens():
+    from pydrake.systems.analysis import Simulator
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=2))
+    d, _ = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    q1 = np.array(sc.robot.home) + [0.1, 0.1, -0.1, 0.1, 0.0, 0.3]
+    d.GetInputPort("ur5.position").FixValue(ctx, q1)
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.04])
+    Simulator(d, ctx).AdvanceTo(1.0)
+    np.testing.assert_allclose(d.GetOutputPort("ur5.position_measured").Eval(ctx), q1, atol=2e-3)
+    assert d.GetOutputPort("gripper.state_measured").Eval(ctx)[0] == pytest.approx(0.04, abs=1e-3)
+
+
+def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
+    """Median position <= 2 mm and yaw <= 2 deg, every object found, no extra object."""
+    from mog_drake.perception import Perceiver, pose_errors
+
+    sc, d, h = station33
+    ctx = d.CreateDefaultContext()
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    rgb = d.GetOutputPort("camera.rgb_image").Eval(ctx).data
+    depth = d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
+    info = sc.camera.info()
+    seen = Perceiver(table=sc.table).perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(),
+                                             (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()))
+    errs = pose_errors(seen, h.scene)
+    assert not [e for e in errs if e.get("extra")]
+    matched = [e for e in errs if e["object"] is not None]
+    assert all(e["position"] is not None for e in matched)  # all 33 found, right shapes
+    pos = np.array([e["position"] for e in matched])
+    yaw = np.degrees([e["yaw"] for e in matched])
+    assert np.median(pos) <= 0.002 and np.median(yaw) <= 2.0
+    assert pos.max() <= 0.005 and yaw.max() <= 5.0
+
+
+def test_ik_reaches_the_workspace_corners():
+    from mog_drake.station import FLANGE_TO_PALM
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    for x, y, yaw in [(-0.15, -0.15, 0.0), (0.15, -0.15, 1.0), (0.15, 0.15, 2.0), (-0.15, 0.15, 3.0), (0, 0, 0.5)]:
+        plan = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)
+        q = plan["approach"].value(plan["approach"].end_time()).ravel()
+        X = m.palm_pose(q)
+        np.testing.assert_allclose(X.translation(), [x, y, 0.042], atol=5e-4)
+        # Palm z up; its x axis along the grasp yaw (modulo pi).
+        R = X.rotation().matrix()
+        assert R[2, 2] > 0.999
+        assert abs(math.remainder(math.atan2(R[1, 0], R[0, 0]) - yaw, math.pi)) < 3e-3
+        for name in ("approach", "lift", "to_bin", "home"):
+            traj = plan[name]
+            ts = np.linspace(0, traj.end_time(), 50)
+            v = np.array([traj.EvalDerivative(t, 1).ravel() for t in ts])
+            assert np.abs(v).max() <= sc.robot.max_joint_speed * 1.02
+
+
+def test_controller_state_machine_with_fixed_inputs():
+    """Fed a fixed decision, the controller asks, moves, closes, lifts, goes to the bin, opens
+    and returns, then asks again."""
+    from pydrake.common.value import AbstractValue
+
+    from mog_drake.planning.picking import PickDecision
+    from mog_drake.station import FLANGE_TO_PALM
+    from mog_drake.systems.leaf_systems import ControllerSystem, Decision
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    c = ControllerSystem(m, sc.robot.home, sc.bin.center, sc.bin.depth)
+    ctx = c.CreateDefaultContext()
+    c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
+    c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
+    decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
+    from pydrake.systems.analysis import Simulator
+
+    sim = Simulator(c, ctx)
+    modes, grippers = [], []
+    sim.AdvanceTo(0.5)
+    assert c.state(ctx).mode == "wait" and c.GetOutputPort("request").Eval(ctx)[0] == 1
+    decision.GetMutableData().set_value(Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0, 1), planning_time=0.1), 5))
+    t = 0.5
+    while t < 12.0:
+        t += 0.05
+        sim.AdvanceTo(t)
+        s = c.state(ctx)
+        if not modes or modes[-1] != s.mode:
+            modes.append(s.mode)
+            grippers.append(c.GetOutputPort("gripper.position").Eval(ctx)[0])
+    assert modes[:7] == ["approach", "close", "lift", "to_bin", "open", "home", "wait"]
+    assert grippers[modes.index("close")] == 0.0 and grippers[modes.index("home")] == pytest.approx(0.075)
+    a = c.state(ctx).attempts[0]
+    assert a["group"] == [0, 1] and a["held_width"] == pytest.approx(0.03) and a["end"] > a["start"]
+    assert c.GetOutputPort("request").Eval(ctx)[0] == 2  # asks for the next observation
+
+
+def test_scenario_yaml_overrides_defaults(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("scene: {kind: row, row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
+    sc = load_scenario(str(f))
+    assert sc.scene.kind == "row" and sc.scene.row_class == 4 and sc.planner.mode == "sog" and sc.time_limit == 30
+    assert sc.camera.width == 640  # untouched defaults remain
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scene: {colour: red}\n")
+    from mog_drake.errors import MogError
+
+    with pytest.raises(MogError, match="bad.yaml"):
+        load_scenario(str(bad))
+
+
+def test_end_to_end_pick_clears_a_small_table():
+    from mog_drake.systems.pick import run_pick
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=5, n_objects=3), time_limit=60.0)
+    run = run_pick(sc)
+    s = run.summary()
+    assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
+    assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
