@@ -153,3 +153,27 @@ def test_end_to_end_pick_clears_a_small_table():
     s = run.summary()
     assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
     assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
+
+
+def test_committed_scenario_file_matches_the_defaults():
+    from pathlib import Path
+
+    from pydrake.common.yaml import yaml_dump_typed
+
+    text = (Path(__file__).parents[1] / "models" / "scenario.yaml").read_text()
+    body = "\n".join(line for line in text.splitlines() if not line.startswith("#"))
+    assert body.strip() == yaml_dump_typed(Scenario()).strip()
+    assert load_scenario(str(Path(__file__).parents[1] / "models" / "scenario.yaml")) == Scenario()
+
+
+def test_tiny_picking_evaluation(tmp_path):
+    from mog_drake.experiments import picking_eval
+
+    summary, results = picking_eval.run(1, ["mog", "sog"], seed=2, out_dir=tmp_path, objects=3, time_limit=60.0,
+                                        progress=False)
+    assert {r["mode"] for r in summary["rows"]} == {"mog", "sog"}
+    for r in summary["rows"]:
+        for k in ("success_rate", "picked_pct", "pph", "objects_per_success", "success_rate_ci"):
+            assert k in r
+    assert summary["pph_ratio_mog_over_sog"] > 0
+    assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
