@@ -31,6 +31,7 @@ class PerceptionConfig:
     max_height: float = 0.060  # m: anything higher (the arm, the bin walls) is ignored
     softness: float = 0.0004  # m, width of the score's edge
     min_fraction: float = 0.35  # a cluster smaller than this share of a shape is noise
+    unknown_area: float = 60e-6  # m^2: unexplained object points covering more are an unrecognised blob
     shapes: tuple[str, ...] = ()  # shapes to look for (default: every library shape)
 
 
@@ -167,7 +168,19 @@ class Perceiver:
                     inside = _soft_inside(pts, poly, cfg.softness) > 0.5
                     explained |= inside & (cls == k)
                     found.append(SceneObject(name, *pose))
-        return Scene(found, self.library, table=tuple(self.table))
+        # Object points no fitted polygon explains (a prism knocked onto its side, say, or
+        # something not in the library): reported, so nobody calls such a table clear.
+        covered = np.zeros(len(pts), dtype=bool)
+        for o in found:
+            grown = transform(self.library[o.shape].vertices * 1.0, o.x, o.y, o.theta)
+            centre = grown.mean(axis=0)
+            grown = centre + (grown - centre) * (1 + 0.003 / max(self.library[o.shape].radius, 1e-3))
+            covered |= _soft_inside(pts, grown, cfg.softness) > 0.5
+        unknown = [c for c in _clusters(pts[~covered], 0.0025)
+                   if w[np.flatnonzero(~covered)[c]].sum() > cfg.unknown_area]
+        scene = Scene(found, self.library, table=tuple(self.table))
+        scene.meta["unrecognised_blobs"] = len(unknown)
+        return scene
 
     def _fit(self, shape, name, pts, idx, explained, negatives, others, centre):
         cfg = self.config

@@ -143,3 +143,11 @@ def test_next_pick_single_object_mode_plans_single_objects():
     assert d.status == "grasp" and len(d.group) == 1 and all(len(g) == 1 for g in v.asked)
     with pytest.raises(MogError, match="mode"):
         next_pick(scene, GraspPlanner(v), mode="both")
+
+
+def test_unrecognised_blobs_are_not_a_clear_table():
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+
+    empty = Scene([], make_scene([]).library, meta={"unrecognised_blobs": 1})
+    assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"

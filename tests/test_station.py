@@ -62,6 +62,7 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
                                              (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()))
     errs = pose_errors(seen, h.scene)
     assert not [e for e in errs if e.get("extra")]
+    assert seen.meta["unrecognised_blobs"] == 0  # every object point is explained
     matched = [e for e in errs if e["object"] is not None]
     assert all(e["position"] is not None for e in matched)  # all 33 found, right shapes
     pos = np.array([e["position"] for e in matched])

@@ -26,7 +26,8 @@ MODES = ("mog", "sog")
 
 @dataclass
 class PickDecision:
-    """status: "grasp" (grasp and group set), "table_clear" or "no_grasp"."""
+    """status: "grasp" (grasp and group set), "table_clear", "no_grasp", or "unrecognised" (no
+    library object is left but perception sees something it cannot recognise)."""
 
     status: str
     grasp: np.ndarray | None = None
@@ -63,7 +64,10 @@ def next_pick(
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
     t0 = time.perf_counter()
     if len(scene) == 0:
-        return PickDecision("table_clear", planning_time=time.perf_counter() - t0)
+        # Something the perception could not recognise (a prism knocked onto its side) is not
+        # a clear table.
+        status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
+        return PickDecision(status, planning_time=time.perf_counter() - t0)
     polys = scene.polygons()
     if mode == "mog":
         groups = rank_obj_groups(
