@@ -32,6 +32,7 @@ class PerceptionConfig:
     softness: float = 0.0004  # m, width of the score's edge
     min_fraction: float = 0.35  # a cluster smaller than this share of a shape is noise
     unknown_area: float = 60e-6  # m^2: unexplained object points covering more are an unrecognised blob
+    wall_margin: float = 0.004  # m around a fitted polygon where side-wall points are explained
     shapes: tuple[str, ...] = ()  # shapes to look for (default: every library shape)
 
 
@@ -62,12 +63,17 @@ def symmetry_order(vertices: np.ndarray) -> int:
     return 1
 
 
-def _soft_inside(pts: np.ndarray, poly: np.ndarray, s: float) -> np.ndarray:
-    """Smooth indicator of points inside a CCW convex polygon (1 deep inside, 0 outside)."""
+def _signed_distance(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Max over a CCW convex polygon's edges of the outward distance: < 0 inside, and a lower
+    bound of the true distance outside (exact near an edge)."""
     e = np.roll(poly, -1, axis=0) - poly
     n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    sd = ((pts[:, None, :] - poly[None, :, :]) * n[None]).sum(-1).max(axis=1)  # < 0 inside
-    return 1.0 / (1.0 + np.exp(np.clip(sd / s, -50, 50)))
+    return ((pts[:, None, :] - poly[None, :, :]) * n[None]).sum(-1).max(axis=1)
+
+
+def _soft_inside(pts: np.ndarray, poly: np.ndarray, s: float) -> np.ndarray:
+    """Smooth indicator of points inside a CCW convex polygon (1 deep inside, 0 outside)."""
+    return 1.0 / (1.0 + np.exp(np.clip(_signed_distance(pts, poly) / s, -50, 50)))
 
 
 def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) -> np.ndarray:
@@ -172,10 +178,8 @@ class Perceiver:
         # something not in the library): reported, so nobody calls such a table clear.
         covered = np.zeros(len(pts), dtype=bool)
         for o in found:
-            grown = transform(self.library[o.shape].vertices * 1.0, o.x, o.y, o.theta)
-            centre = grown.mean(axis=0)
-            grown = centre + (grown - centre) * (1 + 0.003 / max(self.library[o.shape].radius, 1e-3))
-            covered |= _soft_inside(pts, grown, cfg.softness) > 0.5
+            poly = transform(self.library[o.shape].vertices, o.x, o.y, o.theta)
+            covered |= _signed_distance(pts, poly) < cfg.wall_margin  # tops and the side walls around them
         unknown = [c for c in _clusters(pts[~covered], 0.0025)
                    if w[np.flatnonzero(~covered)[c]].sum() > cfg.unknown_area]
         scene = Scene(found, self.library, table=tuple(self.table))
