@@ -432,6 +432,10 @@ def _scenario(args):
         sc.scene = replace(sc.scene, n_objects=args.objects)
     if getattr(args, "time_limit", None):
         sc.time_limit = args.time_limit
+    if getattr(args, "robot_ip", None):
+        sc.hardware = replace(sc.hardware, robot_ip=args.robot_ip)
+    if getattr(args, "dry_run", False):
+        sc.hardware = replace(sc.hardware, dry_run=True)
     return sc
 
 
@@ -453,9 +457,13 @@ def cmd_pick(args) -> int:
             print(f"attempt {k:3d}  group {a['group']}  picked {a['picked']}  in bin {a['in_bin']}  "
                   f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)", flush=True)
 
-    if not args.json:
+    hw = sc.hardware.enabled
+    if not args.json and not hw:
         print(f"picking: {sc.scene.kind} table, seed {sc.scene.seed}, mode {sc.planner.mode}", flush=True)
-    run = run_pick(sc, meshcat=meshcat, on_attempt=line)
+    if hw and not args.json:
+        print(f"hardware: UR5 at {sc.hardware.robot_ip or '(no address)'}"
+              + (" -- DRY RUN, commands are logged, not sent" if sc.hardware.dry_run else ""), flush=True)
+    run = run_pick(sc, meshcat=meshcat, on_attempt=line, realtime=hw and not sc.hardware.dry_run)
     summary = run.summary()
     if args.record:
         Path(args.record).parent.mkdir(parents=True, exist_ok=True)
@@ -466,6 +474,20 @@ def cmd_pick(args) -> int:
         "planning_time_s", "finished"]) + (f"\nreplay: {args.record}" if args.record else ""))
     if args.meshcat and sys.stdin.isatty():
         input("Meshcat is serving the replay; press Enter to quit. ")
+    return 0
+
+
+def cmd_gripper(args) -> int:
+    """Bench check of a Robotiq 2F-85 over the URCap socket."""
+    from mog_drake.hardware.robotiq import RobotiqClient
+
+    with RobotiqClient(args.ip, args.port, timeout=args.timeout) as g:
+        if args.action in ("open", "close"):
+            g.activate()
+            g.move(0.085 if args.action == "open" else 0.0, force=args.force)
+        status = g.status()
+    _emit(args, status, f"gripper at {args.ip}:{args.port}: {args.action} ok; width {status['width'] * 1e3:.1f} mm, "
+                        f"object {'held' if status['holding'] else 'none'} (OBJ {status['object']})")
     return 0
 
 
@@ -703,12 +725,23 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--time-limit", type=float, help="simulated robot seconds")
         sp.add_argument("--json", action="store_true")
         if name == "pick":
+            sp.add_argument("--robot-ip", help="hardware scenarios: the UR controller's address")
+            sp.add_argument("--dry-run", action="store_true", help="hardware: log every command instead of sending")
             sp.add_argument("--meshcat", action="store_true", help="show it live in Meshcat")
             sp.add_argument("--record", metavar="HTML", help="write a self-contained Meshcat replay")
             sp.set_defaults(func=cmd_pick)
         else:
             sp.add_argument("-o", "--output", default="out/diagram.svg")
             sp.set_defaults(func=cmd_diagram)
+
+    sp = sub.add_parser("gripper", help="bench check of a Robotiq 2F-85 (URCap socket)")
+    sp.add_argument("action", choices=["open", "close", "status"])
+    sp.add_argument("--ip", required=True)
+    sp.add_argument("--port", type=int, default=63352)
+    sp.add_argument("--force", type=float, default=40.0, help="N (20-235)")
+    sp.add_argument("--timeout", type=float, default=2.0, help="s to wait for each reply")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_gripper)
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
     sp.add_argument("what", choices=["geometry", "verifier", "agreement"])

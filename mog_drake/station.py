@@ -125,6 +125,23 @@ class PlannerSpec:
 
 
 @dataclass
+class HardwareSpec:
+    """The real robot (see the hardware runbook in the README). ``enabled`` selects it."""
+
+    enabled: bool = False
+    robot_ip: str = ""  # required: the station refuses to start without it
+    gripper_port: int = 63352
+    camera: str = "realsense"  # realsense | replay
+    replay_dir: str = ""  # replay: folder of frame_*.npz
+    replay_frame_period: float = 1e9  # s per recorded frame (default: hold the first)
+    dry_run: bool = False  # log every command instead of sending it
+    command_log: str = ""  # dry run: JSON-lines file (default: stderr)
+    workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
+    max_joint_speed: float = 1.5  # rad/s: a command implying more is refused
+    servo_period: float = 0.01  # s, servoJ streaming period (the controller's period)
+
+
+@dataclass
 class Scenario:
     """Everything a pick-and-place run depends on. Defaults run with no file at all."""
 
@@ -137,7 +154,7 @@ class Scenario:
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])
     time_limit: float = 600.0  # s of simulated robot time
-    hardware: bool = False
+    hardware: HardwareSpec = field(default_factory=HardwareSpec)
 
 
 def load_scenario(path: str | None = None) -> Scenario:
@@ -226,11 +243,13 @@ class StationHandles:
         self.gripper_joints = gripper_joints
 
 
-def MakeStation(scenario: Scenario, scene=None, meshcat=None):
+def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: dict | None = None):
     """Builds the simulated station (see the module doc for its ports). Returns (diagram,
     handles). The hardware station (``scenario.hardware``) lives in mog_drake.hardware."""
-    if scenario.hardware:
-        raise MogError("the hardware station is not available in this build: run in simulation")
+    if scenario.hardware.enabled:
+        from mog_drake.hardware.station import MakeHardwareStation
+
+        return MakeHardwareStation(scenario, **(hardware_clients or {}))
     scene = scene or scene_from_spec(scenario.scene, scenario.table)
     gripper = GripperGeometry()
     builder = DiagramBuilder()

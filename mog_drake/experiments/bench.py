@@ -109,7 +109,7 @@ def bench_verifier(
     return rows
 
 
-def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.001, progress=None) -> dict:
+def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.0005, progress=None) -> dict:
     """Outcome agreement between the default dt = 5 ms verifier and a fine reference.
 
     Half of the candidates are drawn uniformly from the collision-free candidates of random

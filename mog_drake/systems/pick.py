@@ -14,15 +14,17 @@ from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, P
 from mog_drake.systems.motion import ArmMotion, MotionConfig
 
 
-def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None):
+def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
-    station, handles = MakeStation(scenario, scene, meshcat)
+    station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
+    from mog_drake.scenes import default_library
+
+    library = handles.scene.library if handles.scene is not None else default_library()
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
-    perception = builder.AddNamedSystem("perception", PerceptionSystem(scenario.camera, scenario.table,
-                                                                       handles.scene.library))
+    perception = builder.AddNamedSystem("perception", PerceptionSystem(scenario.camera, scenario.table, library))
     vcfg = VerifierConfig(contact=scenario.contact, physics=scenario.gripper)
     planner = GraspPlanner(verifier or DrakeVerifier(vcfg),
                            PlannerConfig(method="gp", n_positions=scenario.planner.n_positions,
@@ -64,7 +66,7 @@ class PickRun:
 
     def summary(self) -> dict:
         n = len(self.attempts)
-        succ = [a for a in self.attempts if a["picked"] >= 1]
+        succ = [a for a in self.attempts if (a["picked"] or 0) >= 1]
         planning = sum(a["planning_time"] for a in self.attempts)
         robot_time = self.sim_time
         return {
@@ -93,17 +95,23 @@ def objects_in_bin(plant, plant_context, bodies, scenario: Scenario) -> list[int
     return out
 
 
-def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, verifier=None) -> PickRun:
-    """Runs the diagram until the table is clear, no grasp is found, or the time limit."""
+def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, verifier=None,
+             hardware_clients=None, realtime: bool = False) -> PickRun:
+    """Runs the diagram until the table is clear, no grasp is found, or the time limit. In
+    simulation each attempt is scored from ground truth (objects in the bin); on hardware there
+    is no ground truth and ``picked`` is None."""
     t0 = time.perf_counter()
-    diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier)
+    diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
     handles = parts["handles"]
     controller = parts["controller"]
     sim = Simulator(diagram)
+    if realtime:
+        sim.set_target_realtime_rate(1.0)
     ctx = sim.get_mutable_context()
     ctrl_ctx = controller.GetMyContextFromRoot(ctx)
-    plant_ctx = handles.plant.GetMyContextFromRoot(ctx)
-    run = PickRun(objects=len(handles.scene))
+    scored = handles.plant is not None
+    plant_ctx = handles.plant.GetMyContextFromRoot(ctx) if scored else None
+    run = PickRun(objects=len(handles.scene) if handles.scene is not None else 0)
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()
@@ -113,11 +121,14 @@ def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, veri
         sim.AdvanceTo(ctx.get_time() + 0.25)
         s = controller.state(ctrl_ctx)
         while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
-            now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
             a = dict(s.attempts[done_attempts])
-            a["picked"] = len(now) - in_bin_before
-            a["in_bin"] = len(now)
-            in_bin_before = len(now)
+            if scored:
+                now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
+                a["picked"] = len(now) - in_bin_before
+                a["in_bin"] = len(now)
+                in_bin_before = len(now)
+            else:
+                a["picked"] = a["in_bin"] = None
             run.attempts.append(a)
             done_attempts += 1
             if on_attempt:
@@ -128,7 +139,7 @@ def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, veri
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
-    run.in_bin = len(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario))
+    run.in_bin = len(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)) if scored else 0
     run.sim_time = ctx.get_time()
     run.wall_time = time.perf_counter() - t0
     return run
