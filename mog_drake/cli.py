@@ -492,7 +492,7 @@ def cmd_gripper(args) -> int:
 
 
 def cmd_diagram(args) -> int:
-    """Draws the pick-and-place Diagram's wiring (SVG or PNG through graphviz, else a .dot file)."""
+    """Draws the pick-and-place Diagram's wiring: graphviz if installed, else matplotlib; .dot writes the source."""
     import shutil
     import subprocess
 
@@ -500,16 +500,17 @@ def cmd_diagram(args) -> int:
 
     sc = _scenario(args)
     diagram, _ = MakePickDiagram(sc)
-    dot = diagram.GetGraphvizString(max_depth=1)
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
-    if out.suffix == ".dot" or not shutil.which("dot"):
-        target = out.with_suffix(".dot")
-        target.write_text(dot)
-        note = "" if out.suffix == ".dot" else " (graphviz 'dot' is not installed: apt-get install graphviz)"
-        _emit(args, {"output": str(target)}, f"wrote {target}{note}")
-        return 0
-    subprocess.run(["dot", f"-T{out.suffix[1:] or 'svg'}", "-o", str(out)], input=dot.encode(), check=True)
+    if out.suffix == ".dot":
+        out.write_text(diagram.GetGraphvizString(max_depth=1))
+    elif shutil.which("dot"):
+        subprocess.run(["dot", f"-T{out.suffix[1:] or 'svg'}", "-o", str(out)],
+                       input=diagram.GetGraphvizString(max_depth=1).encode(), check=True)
+    else:  # no graphviz: draw the top-level wiring with matplotlib
+        from mog_drake import plotting
+
+        plotting.save(plotting.diagram_figure(diagram), out)
     _emit(args, {"output": str(out)}, f"wrote {out}")
     return 0
 
