@@ -777,8 +777,9 @@ def main(argv: list[str] | None = None) -> int:
         "max_physics",
     ):
         v = getattr(args, name, None)
-        if v is not None and v < 1:
-            parser.exit(2, f"mog-drake: error: --{name} must be at least 1, got {v}\n")
+        if v is not None and not isinstance(v, bool) and v < 1:
+            print(f"mog-drake: error: --{name.replace('_', '-')} must be at least 1, got {v}", file=sys.stderr)
+            return 2
     try:
         return int(args.func(args) or 0)
     except MogError as e:

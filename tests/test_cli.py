@@ -78,3 +78,13 @@ def test_console_script_exit_code(tmp_path):
     )
     assert r.returncode == 2
     assert r.stderr.strip().startswith("mog-drake: error:") and "banana" in r.stderr
+
+
+def test_scene_show_with_a_grasp(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    run(capsys, "scene", "generate", "--kind", "row", "--class", "2", "-o", str(scene))
+    png = tmp_path / "g.png"
+    code, _, err = run(capsys, "scene", "show", str(scene), "--grasp", "0", "0", "0", "-o", str(png))
+    assert code == 0 and png.stat().st_size > 10_000, err
+    code, _, err = run(capsys, "bench", "agreement", "--candidates", "0")
+    assert code == 2 and "--candidates must be at least 1" in err
