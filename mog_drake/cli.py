@@ -353,19 +353,7 @@ def cmd_eval(args) -> int:
             args.orientations,
         )
         png = figures.conditions_figure(summary, out / "conditions.png")
-        cols = [
-            "class",
-            "scenes",
-            "candidates_per_scene",
-            "negatives",
-            "positives",
-            "tn_area_pct",
-            "tn_diameter_pct",
-            "tn_either_pct",
-            "tn_both_pct",
-            "false_negatives",
-            "physics_errors",
-        ]
+        cols = conditions.COLUMNS
         text = format_table(summary["rows"], cols)
         fns = summary["false_negatives"]
         text += f"\n\nfalse negatives: {len(fns)}" + "".join(f"\n  {f['replay']}" for f in fns[:20])

@@ -37,7 +37,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.multibody.tree import PdControllerGains
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
@@ -355,4 +355,3 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
     return diagram, StationHandles(plant, scene_graph, robot, bodies, scene, (jl, jr))
 
 
-__all__ = ["MakeStation", "Scenario", "load_scenario", "PORTS_IN", "PORTS_OUT", "BasicVector"]

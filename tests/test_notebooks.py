@@ -1,6 +1,5 @@
 """Every notebook runs top to bottom (small parameters: MOG_NB_QUICK=1) and is committed without outputs."""
 
-import os
 from pathlib import Path
 
 import nbformat

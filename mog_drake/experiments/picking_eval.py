@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
 
@@ -65,5 +63,3 @@ def run(scenes: int, modes, seed: int, out_dir, objects: int = 33, time_limit: f
                         "picking", progress)
     return summarize(results, modes), results
 
-
-__all__ = ["run", "summarize", "np"]

@@ -16,13 +16,12 @@ from __future__ import annotations
 import json
 import math
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
@@ -294,5 +293,3 @@ class RealSenseCamera(LeafSystem):
         state.get_mutable_abstract_state(self._images).set_value((_rgba(rgb), _depth(depth)))
 
 
-__all__ = ["UR5Driver", "RobotiqDriver", "ReplayCamera", "RealSenseCamera", "SafetyMonitor", "SafetyLimits",
-           "FaultLatch", "CommandLog", "record_frame", "BasicVector", "time"]
