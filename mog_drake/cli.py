@@ -325,12 +325,26 @@ def cmd_eval(args) -> int:
         modes = [m.strip() for m in args.modes.split(",") if m.strip()]
         if not modes or any(m not in ("mog", "sog") for m in modes):
             raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
-        summary, _ = picking_eval.run(args.scenes, modes, args.seed, out, args.objects, args.time_limit, jobs,
-                                      args.ray, progress)
+        summary, _ = picking_eval.run(
+            args.scenes, modes, args.seed, out, args.objects, args.time_limit, jobs, args.ray, progress
+        )
         png = figures.picking_figure(summary, out / "picking.png")
-        text = format_table(summary["rows"], ["mode", "scenes", "success_rate", "success_rate_ci", "picked_pct",
-                                              "picked_pct_ci", "pph", "pph_ci", "objects_per_success",
-                                              "paper_success_rate", "paper_pph"])
+        text = format_table(
+            summary["rows"],
+            [
+                "mode",
+                "scenes",
+                "success_rate",
+                "success_rate_ci",
+                "picked_pct",
+                "picked_pct_ci",
+                "pph",
+                "pph_ci",
+                "objects_per_success",
+                "paper_success_rate",
+                "paper_pph",
+            ],
+        )
         text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
         import json as _json
 
@@ -442,24 +456,47 @@ def cmd_pick(args) -> int:
 
     def line(k, a):
         if not args.json:
-            print(f"attempt {k:3d}  group {a['group']}  picked {a['picked']}  in bin {a['in_bin']}  "
-                  f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)", flush=True)
+            print(
+                f"attempt {k:3d}  group {a['group']}  picked {a['picked']}  in bin {a['in_bin']}  "
+                f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)",
+                flush=True,
+            )
 
     hw = sc.hardware.enabled
     if not args.json and not hw:
         print(f"picking: {sc.scene.kind} table, seed {sc.scene.seed}, mode {sc.planner.mode}", flush=True)
     if hw and not args.json:
-        print(f"hardware: UR5 at {sc.hardware.robot_ip or '(no address)'}"
-              + (" -- DRY RUN, commands are logged, not sent" if sc.hardware.dry_run else ""), flush=True)
+        print(
+            f"hardware: UR5 at {sc.hardware.robot_ip or '(no address)'}"
+            + (" -- DRY RUN, commands are logged, not sent" if sc.hardware.dry_run else ""),
+            flush=True,
+        )
     run = run_pick(sc, meshcat=meshcat, on_attempt=line, realtime=hw and not sc.hardware.dry_run)
     summary = run.summary()
     if args.record:
         Path(args.record).parent.mkdir(parents=True, exist_ok=True)
         Path(args.record).write_text(meshcat.StaticHtml())
         summary["replay"] = args.record
-    _emit(args, {"summary": summary, "attempts": run.attempts}, "\n" + format_table([summary], [
-        "objects", "attempts", "success_rate", "picked_pct", "objects_per_success", "pph", "robot_time_s",
-        "planning_time_s", "finished"]) + (f"\nreplay: {args.record}" if args.record else ""))
+    _emit(
+        args,
+        {"summary": summary, "attempts": run.attempts},
+        "\n"
+        + format_table(
+            [summary],
+            [
+                "objects",
+                "attempts",
+                "success_rate",
+                "picked_pct",
+                "objects_per_success",
+                "pph",
+                "robot_time_s",
+                "planning_time_s",
+                "finished",
+            ],
+        )
+        + (f"\nreplay: {args.record}" if args.record else ""),
+    )
     if args.meshcat and sys.stdin.isatty():
         input("Meshcat is serving the replay; press Enter to quit. ")
     return 0
@@ -474,8 +511,12 @@ def cmd_gripper(args) -> int:
             g.activate()
             g.move(0.085 if args.action == "open" else 0.0, force=args.force)
         status = g.status()
-    _emit(args, status, f"gripper at {args.ip}:{args.port}: {args.action} ok; width {status['width'] * 1e3:.1f} mm, "
-                        f"object {'held' if status['holding'] else 'none'} (OBJ {status['object']})")
+    _emit(
+        args,
+        status,
+        f"gripper at {args.ip}:{args.port}: {args.action} ok; width {status['width'] * 1e3:.1f} mm, "
+        f"object {'held' if status['holding'] else 'none'} (OBJ {status['object']})",
+    )
     return 0
 
 
@@ -493,8 +534,11 @@ def cmd_diagram(args) -> int:
     if out.suffix == ".dot":
         out.write_text(diagram.GetGraphvizString(max_depth=1))
     elif shutil.which("dot"):
-        subprocess.run(["dot", f"-T{out.suffix[1:] or 'svg'}", "-o", str(out)],
-                       input=diagram.GetGraphvizString(max_depth=1).encode(), check=True)
+        subprocess.run(
+            ["dot", f"-T{out.suffix[1:] or 'svg'}", "-o", str(out)],
+            input=diagram.GetGraphvizString(max_depth=1).encode(),
+            check=True,
+        )
     else:  # no graphviz: draw the top-level wiring with matplotlib
         from mog_drake import plotting
 
@@ -704,18 +748,24 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_eval)
 
-    for name, helptext in (("pick", "run the pick-and-place Diagram until the table is clear"),
-                           ("diagram", "draw the pick-and-place Diagram's wiring")):
+    for name, helptext in (
+        ("pick", "run the pick-and-place Diagram until the table is clear"),
+        ("diagram", "draw the pick-and-place Diagram's wiring"),
+    ):
         sp = sub.add_parser(name, help=helptext)
         sp.add_argument("--scenario", help="scenario YAML (default: the built-in one)")
         sp.add_argument("--seed", type=int, help="scene and planner seed")
-        sp.add_argument("--mode", choices=["mog", "sog"], help="multi-object (Alg. 1) or single-object picking")
+        sp.add_argument(
+            "--mode", choices=["mog", "sog"], help="multi-object (Alg. 1) or single-object picking"
+        )
         sp.add_argument("--objects", type=int, help="objects on a generated cluttered table")
         sp.add_argument("--time-limit", type=float, help="simulated robot seconds")
         sp.add_argument("--json", action="store_true")
         if name == "pick":
             sp.add_argument("--robot-ip", help="hardware scenarios: the UR controller's address")
-            sp.add_argument("--dry-run", action="store_true", help="hardware: log every command instead of sending")
+            sp.add_argument(
+                "--dry-run", action="store_true", help="hardware: log every command instead of sending"
+            )
             sp.add_argument("--meshcat", action="store_true", help="show it live in Meshcat")
             sp.add_argument("--record", metavar="HTML", help="write a self-contained Meshcat replay")
             sp.set_defaults(func=cmd_pick)
@@ -766,7 +816,9 @@ def main(argv: list[str] | None = None) -> int:
     ):
         v = getattr(args, name, None)
         if v is not None and not isinstance(v, bool) and v < 1:
-            print(f"mog-drake: error: --{name.replace('_', '-')} must be at least 1, got {v}", file=sys.stderr)
+            print(
+                f"mog-drake: error: --{name.replace('_', '-')} must be at least 1, got {v}", file=sys.stderr
+            )
             return 2
     try:
         return int(args.func(args) or 0)

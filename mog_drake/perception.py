@@ -180,8 +180,11 @@ class Perceiver:
         for o in found:
             poly = transform(self.library[o.shape].vertices, o.x, o.y, o.theta)
             covered |= _signed_distance(pts, poly) < cfg.wall_margin  # tops and the side walls around them
-        unknown = [c for c in _clusters(pts[~covered], 0.0025)
-                   if w[np.flatnonzero(~covered)[c]].sum() > cfg.unknown_area]
+        unknown = [
+            c
+            for c in _clusters(pts[~covered], 0.0025)
+            if w[np.flatnonzero(~covered)[c]].sum() > cfg.unknown_area
+        ]
         scene = Scene(found, self.library, table=tuple(self.table))
         scene.meta["unrecognised_blobs"] = len(unknown)
         return scene

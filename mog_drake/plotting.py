@@ -161,8 +161,11 @@ def ranking_figure(ev: GraspEvaluation, order, top: int = 40):
     """Total intersection area A_T of the best-ranked candidates, coloured by verdict."""
     order = np.asarray(order)[:top]
     fig, ax = plt.subplots(figsize=(9, 3))
-    ax.bar(np.arange(len(order)), ev.area_total[order] * 1e6,
-           color=[VERDICT_COLORS[ev.verdict(int(i))] for i in order])
+    ax.bar(
+        np.arange(len(order)),
+        ev.area_total[order] * 1e6,
+        color=[VERDICT_COLORS[ev.verdict(int(i))] for i in order],
+    )
     for verdict, color in VERDICT_COLORS.items():
         ax.bar([0], [0], color=color, label=verdict)
     ax.set_xlabel("rank")
@@ -178,8 +181,14 @@ def candidate_table(ev: GraspEvaluation, order, limit: int = 20):
     rows = []
     for rank, i in enumerate(np.asarray(order)[:limit]):
         i = int(i)
-        row = {"rank": rank, "x_mm": ev.grasps[i, 0] * 1e3, "y_mm": ev.grasps[i, 1] * 1e3,
-               "theta_deg": np.degrees(ev.grasps[i, 2]), "h0_mm": ev.h0[i] * 1e3, "h_fmin_mm": ev.h_fmin * 1e3}
+        row = {
+            "rank": rank,
+            "x_mm": ev.grasps[i, 0] * 1e3,
+            "y_mm": ev.grasps[i, 1] * 1e3,
+            "theta_deg": np.degrees(ev.grasps[i, 2]),
+            "h0_mm": ev.h0[i] * 1e3,
+            "h_fmin_mm": ev.h_fmin * 1e3,
+        }
         row.update({f"A_{g}_mm2": a * 1e6 for g, a in zip(ev.group, ev.areas[i])})
         row["A_T_mm2"] = ev.area_total[i] * 1e6
         row["verdict"] = ev.verdict(i)
@@ -201,23 +210,47 @@ def diagram_figure(diagram, title: str | None = None):
     pos = {name: (3.2 * np.cos(a), 2.2 * np.sin(a)) for name, a in zip(names, ang)}
     fig, ax = plt.subplots(figsize=(10, 7))
     for name, (x, y) in pos.items():
-        ax.text(x, y, name, ha="center", va="center", fontsize=10,
-                bbox={"boxstyle": "round,pad=0.5", "fc": "#e8f1fb", "ec": "#1f77b4"})
+        ax.text(
+            x,
+            y,
+            name,
+            ha="center",
+            va="center",
+            fontsize=10,
+            bbox={"boxstyle": "round,pad=0.5", "fc": "#e8f1fb", "ec": "#1f77b4"},
+        )
     pairs: dict = {}
     for (out_sys, out_port), (in_sys, in_port) in _connections(diagram):
         label = out_port if out_port == in_port else f"{out_port} -> {in_port}"
         pairs.setdefault((out_sys, in_sys), []).append(label)
     for (out_sys, in_sys), labels in pairs.items():
         (x0, y0), (x1, y1) = pos[out_sys], pos[in_sys]
-        ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
-                    arrowprops={"arrowstyle": "->", "color": "0.4", "shrinkA": 28, "shrinkB": 28,
-                                "connectionstyle": "arc3,rad=0.15"})
+        ax.annotate(
+            "",
+            xy=(x1, y1),
+            xytext=(x0, y0),
+            arrowprops={
+                "arrowstyle": "->",
+                "color": "0.4",
+                "shrinkA": 28,
+                "shrinkB": 28,
+                "connectionstyle": "arc3,rad=0.15",
+            },
+        )
         # Label on the arrow's side of the chord (arcs bend to the right of travel).
         dx, dy = x1 - x0, y1 - y0
         norm = max(np.hypot(dx, dy), 1e-9)
         mx, my = (x0 + x1) / 2 + 0.35 * dy / norm, (y0 + y1) / 2 - 0.35 * dx / norm
-        ax.text(mx, my, "\n".join(sorted(labels)), fontsize=7, color="0.2", ha="center", va="center",
-                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8})
+        ax.text(
+            mx,
+            my,
+            "\n".join(sorted(labels)),
+            fontsize=7,
+            color="0.2",
+            ha="center",
+            va="center",
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8},
+        )
     ax.set_xlim(-4.5, 4.5)
     ax.set_ylim(-3.0, 3.0)
     ax.axis("off")
@@ -230,6 +263,10 @@ def _connections(diagram):
     """((source system, output port), (destination system, input port)) name pairs."""
     out = []
     for (dst_sys, dst_idx), (src_sys, src_idx) in diagram.connection_map().items():
-        out.append(((src_sys.get_name(), src_sys.get_output_port(src_idx).get_name()),
-                    (dst_sys.get_name(), dst_sys.get_input_port(dst_idx).get_name())))
+        out.append(
+            (
+                (src_sys.get_name(), src_sys.get_output_port(src_idx).get_name()),
+                (dst_sys.get_name(), dst_sys.get_input_port(dst_idx).get_name()),
+            )
+        )
     return out

@@ -18,7 +18,6 @@ simulation only (tests and scoring; the application never reads them)
 World frame = table frame: origin at the centre of the table top, z up.
 """
 
-
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -353,5 +352,3 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram, StationHandles(plant, scene_graph, robot, bodies, scene, (jl, jr))
-
-

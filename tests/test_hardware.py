@@ -34,7 +34,9 @@ def _safety(sc):
 
 
 def _driver(sc, fake, faults=None):
-    d = UR5Driver(fake, fake, _safety(sc), faults if faults is not None else FaultLatch(), sc.robot.home, period=0.01)
+    d = UR5Driver(
+        fake, fake, _safety(sc), faults if faults is not None else FaultLatch(), sc.robot.home, period=0.01
+    )
     ctx = d.CreateDefaultContext()
     return d, ctx
 
@@ -82,8 +84,9 @@ def test_safety_monitor_accepts_the_workspace_and_refuses_below_the_table():
     assert "outside the workspace" in mon.check(q_low)
 
 
-@pytest.mark.parametrize("fake_kw,msg", [({"fail_after": 2}, "connection lost"),
-                                         ({"protective_stop_after": 3}, "protective stop")])
+@pytest.mark.parametrize(
+    "fake_kw,msg", [({"fail_after": 2}, "connection lost"), ({"protective_stop_after": 3}, "protective stop")]
+)
 def test_faults_halt_the_arm_and_keep_the_gripper_closed(fake_kw, msg):
     sc = Scenario()
     fake = FakeRTDE(sc.robot.home, **fake_kw)
@@ -117,17 +120,25 @@ def replay_dir(tmp_path_factory):
     d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
     d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
     folder = tmp_path_factory.mktemp("frames")
-    record_frame(folder, d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
-                 d.GetOutputPort("camera.depth_image").Eval(ctx).data)
+    record_frame(
+        folder,
+        d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
+        d.GetOutputPort("camera.depth_image").Eval(ctx).data,
+    )
     return folder
 
 
 def test_both_stations_export_identical_ports(replay_dir):
-    sc = Scenario(hardware=HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera="replay",
-                                        replay_dir=str(replay_dir), dry_run=True))
+    sc = Scenario(
+        hardware=HardwareSpec(
+            enabled=True, robot_ip="192.0.2.1", camera="replay", replay_dir=str(replay_dir), dry_run=True
+        )
+    )
     hw, _ = MakeStation(sc)
-    names = ({hw.get_input_port(i).get_name() for i in range(hw.num_input_ports())},
-             {hw.get_output_port(i).get_name() for i in range(hw.num_output_ports())})
+    names = (
+        {hw.get_input_port(i).get_name() for i in range(hw.num_input_ports())},
+        {hw.get_output_port(i).get_name() for i in range(hw.num_output_ports())},
+    )
     assert names == (set(PORTS_IN), set(PORTS_OUT))
 
 
@@ -136,11 +147,21 @@ def test_full_diagram_on_the_hardware_station_runs_an_attempt(replay_dir):
     the drivers to fake clients: one attempt end to end."""
     from mog_drake.systems.pick import run_pick
 
-    sc = Scenario(hardware=HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera="replay",
-                                        replay_dir=str(replay_dir), max_joint_speed=3.5), time_limit=4.0)
+    sc = Scenario(
+        hardware=HardwareSpec(
+            enabled=True,
+            robot_ip="192.0.2.1",
+            camera="replay",
+            replay_dir=str(replay_dir),
+            max_joint_speed=3.5,
+        ),
+        time_limit=4.0,
+    )
     fake = FakeRTDE(sc.robot.home)
     with FakeRobotiq() as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client:
-        run = run_pick(sc, hardware_clients={"rtde_control": fake, "rtde_receive": fake, "gripper_client": client})
+        run = run_pick(
+            sc, hardware_clients={"rtde_control": fake, "rtde_receive": fake, "gripper_client": client}
+        )
         received = list(srv.received)
     assert len(run.attempts) >= 1 and run.attempts[0]["picked"] is None
     servo = np.array([c[1] for c in fake.calls if c[0] == "servoJ"])
@@ -160,9 +181,18 @@ def test_dry_run_logs_commands_and_sends_nothing(replay_dir, tmp_path):
     from mog_drake.systems.pick import run_pick
 
     log = tmp_path / "commands.jsonl"
-    sc = Scenario(hardware=HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera="replay",
-                                        replay_dir=str(replay_dir), dry_run=True, command_log=str(log),
-                                        max_joint_speed=3.5), time_limit=4.0)
+    sc = Scenario(
+        hardware=HardwareSpec(
+            enabled=True,
+            robot_ip="192.0.2.1",
+            camera="replay",
+            replay_dir=str(replay_dir),
+            dry_run=True,
+            command_log=str(log),
+            max_joint_speed=3.5,
+        ),
+        time_limit=4.0,
+    )
     run_pick(sc)
     lines = [json.loads(x) for x in log.read_text().splitlines()]
     assert {x["device"] for x in lines} == {"ur5", "robotiq"}

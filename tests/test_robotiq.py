@@ -9,8 +9,13 @@ def test_activate_move_status():
         g.activate()
         g.move(0.0, force=40.0, speed=0.15)
         s = g.status()
-    assert srv.received[:5] == ["SET ACT 1", "SET POS 255", "SET SPE 255", f"SET FOR {round(255 * 20 / 215)}",
-                                "SET GTO 1"]
+    assert srv.received[:5] == [
+        "SET ACT 1",
+        "SET POS 255",
+        "SET SPE 255",
+        f"SET FOR {round(255 * 20 / 215)}",
+        "SET GTO 1",
+    ]
     assert s["pos"] == 255 and s["width"] == 0.0 and s["object"] == 3 and not s["holding"]
 
 

@@ -58,8 +58,12 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     rgb = d.GetOutputPort("camera.rgb_image").Eval(ctx).data
     depth = d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
     info = sc.camera.info()
-    seen = Perceiver(table=sc.table).perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(),
-                                             (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()))
+    seen = Perceiver(table=sc.table).perceive(
+        rgb,
+        depth,
+        sc.camera.X_WC().GetAsMatrix4(),
+        (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+    )
     errs = pose_errors(seen, h.scene)
     assert not [e for e in errs if e.get("extra")]
     assert seen.meta["unrecognised_blobs"] == 0  # every object point is explained
@@ -77,7 +81,13 @@ def test_ik_reaches_the_workspace_corners():
 
     sc = Scenario()
     m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
-    for x, y, yaw in [(-0.15, -0.15, 0.0), (0.15, -0.15, 1.0), (0.15, 0.15, 2.0), (-0.15, 0.15, 3.0), (0, 0, 0.5)]:
+    for x, y, yaw in [
+        (-0.15, -0.15, 0.0),
+        (0.15, -0.15, 1.0),
+        (0.15, 0.15, 2.0),
+        (-0.15, 0.15, 3.0),
+        (0, 0, 0.5),
+    ]:
         plan = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)
         q = plan["approach"].value(plan["approach"].end_time()).ravel()
         X = m.palm_pose(q)
@@ -116,7 +126,9 @@ def test_controller_state_machine_with_fixed_inputs():
     modes, grippers = [], []
     sim.AdvanceTo(0.5)
     assert c.state(ctx).mode == "wait" and c.GetOutputPort("request").Eval(ctx)[0] == 1
-    decision.GetMutableData().set_value(Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0, 1), planning_time=0.1), 5))
+    decision.GetMutableData().set_value(
+        Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0, 1), planning_time=0.1), 5)
+    )
     t = 0.5
     while t < 12.0:
         t += 0.05
@@ -136,7 +148,12 @@ def test_scenario_yaml_overrides_defaults(tmp_path):
     f = tmp_path / "s.yaml"
     f.write_text("scene: {kind: row, row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
     sc = load_scenario(str(f))
-    assert sc.scene.kind == "row" and sc.scene.row_class == 4 and sc.planner.mode == "sog" and sc.time_limit == 30
+    assert (
+        sc.scene.kind == "row"
+        and sc.scene.row_class == 4
+        and sc.planner.mode == "sog"
+        and sc.time_limit == 30
+    )
     assert sc.camera.width == 640  # untouched defaults remain
     bad = tmp_path / "bad.yaml"
     bad.write_text("scene: {colour: red}\n")
@@ -170,8 +187,9 @@ def test_committed_scenario_file_matches_the_defaults():
 def test_tiny_picking_evaluation(tmp_path):
     from mog_drake.experiments import picking_eval
 
-    summary, results = picking_eval.run(1, ["mog", "sog"], seed=2, out_dir=tmp_path, objects=3, time_limit=60.0,
-                                        progress=False)
+    summary, results = picking_eval.run(
+        1, ["mog", "sog"], seed=2, out_dir=tmp_path, objects=3, time_limit=60.0, progress=False
+    )
     assert {r["mode"] for r in summary["rows"]} == {"mog", "sog"}
     for r in summary["rows"]:
         for k in ("success_rate", "picked_pct", "pph", "objects_per_success", "success_rate_ci"):

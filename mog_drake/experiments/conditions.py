@@ -87,8 +87,19 @@ def conditions_worker(task: dict) -> dict:
 
 
 #: The summary's columns, in the order tables print them.
-COLUMNS = ["class", "scenes", "candidates_per_scene", "negatives", "positives", "tn_area_pct", "tn_diameter_pct",
-           "tn_either_pct", "tn_both_pct", "false_negatives", "physics_errors"]
+COLUMNS = [
+    "class",
+    "scenes",
+    "candidates_per_scene",
+    "negatives",
+    "positives",
+    "tn_area_pct",
+    "tn_diameter_pct",
+    "tn_either_pct",
+    "tn_both_pct",
+    "false_negatives",
+    "physics_errors",
+]
 
 # Counters per class: candidates, negatives, negatives rejected by area / by diameter / by
 # either / by both, results with a physics error, false negatives.

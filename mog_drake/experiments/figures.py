@@ -83,13 +83,27 @@ def picking_figure(summary: dict, path: str | Path) -> Path:
 
     rows = summary["rows"]
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.5))
-    for ax, key, label in zip(axes, ("success_rate", "picked_pct", "pph"),
-                              ("grasp success (%)", "objects picked (%)", "picks per hour")):
+    for ax, key, label in zip(
+        axes,
+        ("success_rate", "picked_pct", "pph"),
+        ("grasp success (%)", "objects picked (%)", "picks per hour"),
+    ):
         x = np.arange(len(rows))
-        ax.bar(x - 0.2, [r[key] for r in rows], 0.4, yerr=[np.nan_to_num(r[key + "_ci"]) for r in rows],
-               capsize=3, label="ours (sim)")
-        ax.bar(x + 0.2, [PAPER_TABLE1.get(r["mode"], {}).get(key, np.nan) for r in rows], 0.4, color="0.6",
-               label="paper (real UR5)")
+        ax.bar(
+            x - 0.2,
+            [r[key] for r in rows],
+            0.4,
+            yerr=[np.nan_to_num(r[key + "_ci"]) for r in rows],
+            capsize=3,
+            label="ours (sim)",
+        )
+        ax.bar(
+            x + 0.2,
+            [PAPER_TABLE1.get(r["mode"], {}).get(key, np.nan) for r in rows],
+            0.4,
+            color="0.6",
+            label="paper (real UR5)",
+        )
         ax.set_xticks(x, [r["mode"] for r in rows])
         ax.set_title(label, fontsize=10)
         ax.grid(axis="y", alpha=0.3)

@@ -20,16 +20,28 @@ def picking_worker(task: dict) -> dict:
     from mog_drake.station import PlannerSpec, Scenario, SceneSpec
     from mog_drake.systems.pick import run_pick
 
-    scenario = Scenario(scene=SceneSpec(kind="cluttered", seed=task["scene_seed"], n_objects=task["objects"]),
-                        time_limit=task["time_limit"])
+    scenario = Scenario(
+        scene=SceneSpec(kind="cluttered", seed=task["scene_seed"], n_objects=task["objects"]),
+        time_limit=task["time_limit"],
+    )
     scenario.planner = replace(PlannerSpec(), mode=task["mode"], seed=task["scene_seed"])
     run = run_pick(scenario)
     return {**task, "summary": run.summary(), "attempts": run.attempts}
 
 
 def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float) -> list[dict]:
-    return [{"key": f"s{k}-{m}", "scene": k, "mode": m, "scene_seed": seed * 1_000_000 + k, "objects": objects,
-             "time_limit": time_limit} for k in range(scenes) for m in modes]
+    return [
+        {
+            "key": f"s{k}-{m}",
+            "scene": k,
+            "mode": m,
+            "scene_seed": seed * 1_000_000 + k,
+            "objects": objects,
+            "time_limit": time_limit,
+        }
+        for k in range(scenes)
+        for m in modes
+    ]
 
 
 def summarize(results: list[dict], modes) -> dict:
@@ -39,8 +51,13 @@ def summarize(results: list[dict], modes) -> dict:
         if not rs:
             continue
         row = {"mode": m, "scenes": len(rs)}
-        for key, scale in (("success_rate", 100.0), ("picked_pct", 1.0), ("pph", 1.0), ("objects_per_success", 1.0),
-                           ("attempts", 1.0)):
+        for key, scale in (
+            ("success_rate", 100.0),
+            ("picked_pct", 1.0),
+            ("pph", 1.0),
+            ("objects_per_success", 1.0),
+            ("attempts", 1.0),
+        ):
             mean, ci = mean_ci([r[key] * scale for r in rs if r[key] == r[key]])
             row[key], row[key + "_ci"] = mean, ci
         paper = PAPER_TABLE1.get(m, {})
@@ -52,14 +69,39 @@ def summarize(results: list[dict], modes) -> dict:
     return {"rows": rows, "pph_ratio_mog_over_sog": ratio}
 
 
-def run(scenes: int, modes, seed: int, out_dir, objects: int = 33, time_limit: float = 900.0, jobs: int = 1,
-        ray_address=None, progress: bool = True) -> tuple[dict, list[dict]]:
+def run(
+    scenes: int,
+    modes,
+    seed: int,
+    out_dir,
+    objects: int = 33,
+    time_limit: float = 900.0,
+    jobs: int = 1,
+    ray_address=None,
+    progress: bool = True,
+) -> tuple[dict, list[dict]]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     modes = list(modes)
-    check_params(out_dir, {"experiment": "picking", "seed": seed, "modes": modes, "objects": objects,
-                           "time_limit": time_limit, "scenes": scenes}, growable=("scenes",))
-    results = run_sweep(tasks(scenes, modes, seed, objects, time_limit), picking_worker, out_dir, jobs, ray_address,
-                        "picking", progress)
+    check_params(
+        out_dir,
+        {
+            "experiment": "picking",
+            "seed": seed,
+            "modes": modes,
+            "objects": objects,
+            "time_limit": time_limit,
+            "scenes": scenes,
+        },
+        growable=("scenes",),
+    )
+    results = run_sweep(
+        tasks(scenes, modes, seed, objects, time_limit),
+        picking_worker,
+        out_dir,
+        jobs,
+        ray_address,
+        "picking",
+        progress,
+    )
     return summarize(results, modes), results
-

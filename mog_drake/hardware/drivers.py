@@ -46,7 +46,9 @@ class FaultLatch:
 class SafetyLimits:
     """What a command must satisfy before it is sent."""
 
-    workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])  # palm box, m
+    workspace: list[float] = field(
+        default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65]
+    )  # palm box, m
     max_joint_speed: float = 1.5  # rad/s
     joint_margin: float = 0.05  # rad inside the +-2 pi limits
 
@@ -98,8 +100,18 @@ class CommandLog:
 class UR5Driver(LeafSystem):
     """ur5.position -> servoJ (checked); getActualQ -> ur5.position_measured."""
 
-    def __init__(self, control, receive, safety: SafetyMonitor, faults: FaultLatch, q_init, period: float = 0.008,
-                 dry_run: bool = False, log: CommandLog | None = None, servo=(0.5, 0.5, 0.1, 300.0)):
+    def __init__(
+        self,
+        control,
+        receive,
+        safety: SafetyMonitor,
+        faults: FaultLatch,
+        q_init,
+        period: float = 0.008,
+        dry_run: bool = False,
+        log: CommandLog | None = None,
+        servo=(0.5, 0.5, 0.1, 300.0),
+    ):
         super().__init__()
         self._control, self._receive = control, receive
         self._safety, self._faults = safety, faults
@@ -164,8 +176,17 @@ class UR5Driver(LeafSystem):
 class RobotiqDriver(LeafSystem):
     """gripper.position (inner opening, m) -> move commands; status -> gripper.state_measured."""
 
-    def __init__(self, client, faults: FaultLatch, force: float, speed: float = 0.15, period: float = 0.05,
-                 dry_run: bool = False, log: CommandLog | None = None, initial_width: float = 0.075):
+    def __init__(
+        self,
+        client,
+        faults: FaultLatch,
+        force: float,
+        speed: float = 0.15,
+        period: float = 0.05,
+        dry_run: bool = False,
+        log: CommandLog | None = None,
+        initial_width: float = 0.075,
+    ):
         super().__init__()
         self._client, self._faults = client, faults
         self._force, self._speed, self._dry = force, speed, dry_run
@@ -241,10 +262,16 @@ class ReplayCamera(LeafSystem):
                 raise MogError(f"{f}: a frame needs arrays 'rgb' and 'depth'")
             self._frames.append((_rgba(d["rgb"]), _depth(d["depth"])))
         self._period = frame_period
-        self.DeclareAbstractOutputPort("camera.rgb_image", lambda: AbstractValue.Make(ImageRgba8U()),
-                                       lambda c, o: o.set_value(self._frame(c)[0]))
-        self.DeclareAbstractOutputPort("camera.depth_image", lambda: AbstractValue.Make(ImageDepth32F()),
-                                       lambda c, o: o.set_value(self._frame(c)[1]))
+        self.DeclareAbstractOutputPort(
+            "camera.rgb_image",
+            lambda: AbstractValue.Make(ImageRgba8U()),
+            lambda c, o: o.set_value(self._frame(c)[0]),
+        )
+        self.DeclareAbstractOutputPort(
+            "camera.depth_image",
+            lambda: AbstractValue.Make(ImageDepth32F()),
+            lambda c, o: o.set_value(self._frame(c)[1]),
+        )
 
     def _frame(self, context):
         return self._frames[min(int(context.get_time() / self._period), len(self._frames) - 1)]
@@ -254,8 +281,11 @@ def record_frame(folder: str | Path, rgb: np.ndarray, depth: np.ndarray, index: 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"frame_{index:04d}.npz"
-    np.savez_compressed(path, rgb=np.asarray(rgb)[:, :, :3], depth=np.asarray(depth, np.float32).reshape(
-        np.asarray(rgb).shape[:2]))
+    np.savez_compressed(
+        path,
+        rgb=np.asarray(rgb)[:, :, :3],
+        depth=np.asarray(depth, np.float32).reshape(np.asarray(rgb).shape[:2]),
+    )
     return path
 
 
@@ -268,7 +298,9 @@ class RealSenseCamera(LeafSystem):
         try:
             import pyrealsense2 as rs
         except ImportError:
-            raise MogError("the RealSense camera needs pyrealsense2: pip install 'mog_drake[hardware]'") from None
+            raise MogError(
+                "the RealSense camera needs pyrealsense2: pip install 'mog_drake[hardware]'"
+            ) from None
         self._rs = rs
         self._pipe = rs.pipeline()
         cfg = rs.config()
@@ -277,12 +309,19 @@ class RealSenseCamera(LeafSystem):
         profile = self._pipe.start(cfg)
         self._scale = profile.get_device().first_depth_sensor().get_depth_scale()
         self._align = rs.align(rs.stream.color)
-        self._images = self.DeclareAbstractState(AbstractValue.Make((ImageRgba8U(width, height),
-                                                                     ImageDepth32F(width, height))))
-        self.DeclareAbstractOutputPort("camera.rgb_image", lambda: AbstractValue.Make(ImageRgba8U()),
-                                       lambda c, o: o.set_value(c.get_abstract_state(self._images).get_value()[0]))
-        self.DeclareAbstractOutputPort("camera.depth_image", lambda: AbstractValue.Make(ImageDepth32F()),
-                                       lambda c, o: o.set_value(c.get_abstract_state(self._images).get_value()[1]))
+        self._images = self.DeclareAbstractState(
+            AbstractValue.Make((ImageRgba8U(width, height), ImageDepth32F(width, height)))
+        )
+        self.DeclareAbstractOutputPort(
+            "camera.rgb_image",
+            lambda: AbstractValue.Make(ImageRgba8U()),
+            lambda c, o: o.set_value(c.get_abstract_state(self._images).get_value()[0]),
+        )
+        self.DeclareAbstractOutputPort(
+            "camera.depth_image",
+            lambda: AbstractValue.Make(ImageDepth32F()),
+            lambda c, o: o.set_value(c.get_abstract_state(self._images).get_value()[1]),
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._grab)
 
     def _grab(self, context, state):
@@ -291,5 +330,3 @@ class RealSenseCamera(LeafSystem):
         depth = np.asanyarray(frames.get_depth_frame().get_data()).astype(np.float32) * self._scale
         depth[depth == 0] = np.nan
         state.get_mutable_abstract_state(self._images).set_value((_rgba(rgb), _depth(depth)))
-
-

@@ -39,7 +39,9 @@ class RobotiqCalibration:
 
     def force_to_byte(self, force: float) -> int:
         if not self.force_min <= force <= self.force_max:
-            raise RobotiqError(f"grip force {force} N is outside the 2F-85's {self.force_min}-{self.force_max} N")
+            raise RobotiqError(
+                f"grip force {force} N is outside the 2F-85's {self.force_min}-{self.force_max} N"
+            )
         return int(round(255 * (force - self.force_min) / (self.force_max - self.force_min)))
 
     def speed_to_byte(self, speed: float) -> int:
@@ -50,8 +52,13 @@ class RobotiqCalibration:
 class RobotiqClient:
     """A blocking client with a timeout on every reply."""
 
-    def __init__(self, host: str, port: int = DEFAULT_PORT, timeout: float = 2.0,
-                 calibration: RobotiqCalibration | None = None):
+    def __init__(
+        self,
+        host: str,
+        port: int = DEFAULT_PORT,
+        timeout: float = 2.0,
+        calibration: RobotiqCalibration | None = None,
+    ):
         self.host, self.port, self.timeout = host, port, timeout
         self.cal = calibration or RobotiqCalibration()
         try:
@@ -115,5 +122,10 @@ class RobotiqClient:
     def status(self) -> dict:
         pos = self.get("POS")
         obj = self.get("OBJ")
-        return {"pos": pos, "width": self.cal.pos_to_width(pos), "object": obj,
-                "holding": obj in (1, 2), "moving": obj == 0}
+        return {
+            "pos": pos,
+            "width": self.cal.pos_to_width(pos),
+            "object": obj,
+            "holding": obj in (1, 2),
+            "moving": obj == 0,
+        }

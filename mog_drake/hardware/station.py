@@ -33,7 +33,9 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
 
     hw = scenario.hardware
     if not hw.robot_ip:
-        raise MogError("the hardware station needs an explicit robot address (--robot-ip or hardware.robot_ip)")
+        raise MogError(
+            "the hardware station needs an explicit robot address (--robot-ip or hardware.robot_ip)"
+        )
     faults = FaultLatch()
     log = CommandLog(hw.command_log) if hw.dry_run else None
     control, receive, gripper = rtde_control, rtde_receive, gripper_client
@@ -55,17 +57,30 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
             gripper = RobotiqClient(hw.robot_ip, hw.gripper_port)
         gripper.activate()
     q_init = list(receive.getActualQ()) if (receive is not None and not hw.dry_run) else scenario.robot.home
-    safety = SafetyMonitor(SafetyLimits(list(hw.workspace), hw.max_joint_speed), scenario.robot.base, FLANGE_TO_PALM)
+    safety = SafetyMonitor(
+        SafetyLimits(list(hw.workspace), hw.max_joint_speed), scenario.robot.base, FLANGE_TO_PALM
+    )
     builder = DiagramBuilder()
-    ur5 = builder.AddNamedSystem("ur5_driver", UR5Driver(control, receive, safety, faults, q_init, hw.servo_period,
-                                                         hw.dry_run, log))
-    grip = builder.AddNamedSystem("robotiq_driver", RobotiqDriver(gripper, faults, scenario.gripper.force_limit,
-                                                                  scenario.gripper.close_speed, dry_run=hw.dry_run,
-                                                                  log=log))
+    ur5 = builder.AddNamedSystem(
+        "ur5_driver", UR5Driver(control, receive, safety, faults, q_init, hw.servo_period, hw.dry_run, log)
+    )
+    grip = builder.AddNamedSystem(
+        "robotiq_driver",
+        RobotiqDriver(
+            gripper,
+            faults,
+            scenario.gripper.force_limit,
+            scenario.gripper.close_speed,
+            dry_run=hw.dry_run,
+            log=log,
+        ),
+    )
     if hw.camera == "replay":
         camera = builder.AddNamedSystem("camera", ReplayCamera(hw.replay_dir, hw.replay_frame_period))
     elif hw.camera == "realsense":
-        camera = builder.AddNamedSystem("camera", RealSenseCamera(scenario.camera.width, scenario.camera.height))
+        camera = builder.AddNamedSystem(
+            "camera", RealSenseCamera(scenario.camera.width, scenario.camera.height)
+        )
     else:
         raise MogError(f"hardware.camera must be 'realsense' or 'replay', got {hw.camera!r}")
     builder.ExportInput(ur5.GetInputPort("ur5.position"), "ur5.position")

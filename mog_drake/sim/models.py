@@ -4,7 +4,6 @@ Everything is built in code from the object library and `GripperGeometry` (the o
 truth for the gripper's sizes), so nothing needs `package://` resolution or a network.
 """
 
-
 import logging
 from dataclasses import dataclass
 

@@ -41,7 +41,9 @@ class Decision:
 class PerceptionSystem(LeafSystem):
     """camera.rgb_image, camera.depth_image, request -> scene (a perceived Scene)."""
 
-    def __init__(self, camera, table, library=None, config: PerceptionConfig | None = None, period: float = 0.01):
+    def __init__(
+        self, camera, table, library=None, config: PerceptionConfig | None = None, period: float = 0.01
+    ):
         super().__init__()
         self._perceiver = Perceiver(library, config, table)
         self._X_WC = camera.X_WC().GetAsMatrix4()
@@ -51,8 +53,12 @@ class PerceptionSystem(LeafSystem):
         self._depth = self.DeclareAbstractInputPort("camera.depth_image", AbstractValue.Make(ImageDepth32F()))
         self._request = self.DeclareVectorInputPort("request", 1)
         self._state = self.DeclareAbstractState(AbstractValue.Make(Perceived()))
-        self.DeclareAbstractOutputPort("scene", lambda: AbstractValue.Make(Perceived()), self._out,
-                                       prerequisites_of_calc={self.all_state_ticket()})
+        self.DeclareAbstractOutputPort(
+            "scene",
+            lambda: AbstractValue.Make(Perceived()),
+            self._out,
+            prerequisites_of_calc={self.all_state_ticket()},
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
     def _update(self, context, state) -> None:
@@ -64,7 +70,9 @@ class PerceptionSystem(LeafSystem):
         rgb = self._rgb.Eval(context).data
         depth = self._depth.Eval(context).data[:, :, 0]
         scene = self._perceiver.perceive(rgb, depth, self._X_WC, self._K, seed=req)
-        state.get_mutable_abstract_state(self._state).set_value(Perceived(req, scene, time.perf_counter() - t0))
+        state.get_mutable_abstract_state(self._state).set_value(
+            Perceived(req, scene, time.perf_counter() - t0)
+        )
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
@@ -80,8 +88,12 @@ class PlannerSystem(LeafSystem):
         self._rng = np.random.default_rng(seed)
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(Decision()))
-        self.DeclareAbstractOutputPort("decision", lambda: AbstractValue.Make(Decision()), self._out,
-                                       prerequisites_of_calc={self.all_state_ticket()})
+        self.DeclareAbstractOutputPort(
+            "decision",
+            lambda: AbstractValue.Make(Decision()),
+            self._out,
+            prerequisites_of_calc={self.all_state_ticket()},
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
     def _update(self, context, state) -> None:
@@ -114,9 +126,19 @@ class ControllerSystem(LeafSystem):
 
     MOTIONS = {"approach": "close", "lift": "to_bin", "to_bin": "open", "home": "observe"}
 
-    def __init__(self, motion, home, bin_xy, bin_height: float, open_width: float = 0.075,
-                 close_time: float = 0.45, open_time: float = 0.35, settle_time: float = 0.2,
-                 time_limit: float = 600.0, period: float = 0.01):
+    def __init__(
+        self,
+        motion,
+        home,
+        bin_xy,
+        bin_height: float,
+        open_width: float = 0.075,
+        close_time: float = 0.45,
+        open_time: float = 0.35,
+        settle_time: float = 0.2,
+        time_limit: float = 600.0,
+        period: float = 0.01,
+    ):
         super().__init__()
         self._motion = motion
         self._home = np.asarray(home, float)
@@ -164,9 +186,16 @@ class ControllerSystem(LeafSystem):
                         new.mode, new.finished = "done", f"unreachable grasp: {e}"
                     else:
                         new.mode, new.t_mode = "approach", t
-                        new.attempts.append({"start": t, "group": list(dec.group), "grasp": dec.grasp.tolist(),
-                                             "planning_time": dec.planning_time, "objects_seen": d.objects_seen,
-                                             "physics_checks": dec.physics_checks})
+                        new.attempts.append(
+                            {
+                                "start": t,
+                                "group": list(dec.group),
+                                "grasp": dec.grasp.tolist(),
+                                "planning_time": dec.planning_time,
+                                "objects_seen": d.objects_seen,
+                                "physics_checks": dec.physics_checks,
+                            }
+                        )
         elif s.mode in self.MOTIONS:
             traj = s.plan[s.mode]
             if dt >= traj.end_time() + 0.05:

@@ -37,17 +37,30 @@ class MotionConfig:
 class ArmMotion:
     """IK and time parameterisation on an arm-only copy of the station's UR5."""
 
-    def __init__(self, base_xyyaw, flange_to_palm: float, max_speed: float, max_accel: float,
-                 config: MotionConfig | None = None):
+    def __init__(
+        self,
+        base_xyyaw,
+        flange_to_palm: float,
+        max_speed: float,
+        max_accel: float,
+        config: MotionConfig | None = None,
+    ):
         self.config = config or MotionConfig()
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(URDF_PATH))
         bx, by, byaw = base_xyyaw
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"),
-                         RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]))
-        self.palm = plant.AddFrame(FixedOffsetFrame(
-            "palm", plant.GetFrameByName("tool0"), RigidTransform(RotationMatrix.MakeXRotation(np.pi),
-                                                                  [0.0, 0.0, flange_to_palm])))
+        plant.WeldFrames(
+            plant.world_frame(),
+            plant.GetFrameByName("base_link"),
+            RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]),
+        )
+        self.palm = plant.AddFrame(
+            FixedOffsetFrame(
+                "palm",
+                plant.GetFrameByName("tool0"),
+                RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, flange_to_palm]),
+            )
+        )
         plant.Finalize()
         self.plant = plant
         self.context = plant.CreateDefaultContext()
@@ -63,16 +76,19 @@ class ArmMotion:
         ik = InverseKinematics(self.plant, with_joint_limits=True)
         p = np.asarray(position, float)
         ik.AddPositionConstraint(self.palm, np.zeros(3), self.plant.world_frame(), p - pos_tol, p + pos_tol)
-        ik.AddOrientationConstraint(self.plant.world_frame(), RotationMatrix.MakeZRotation(yaw), self.palm,
-                                    RotationMatrix(), rot_tol)
+        ik.AddOrientationConstraint(
+            self.plant.world_frame(), RotationMatrix.MakeZRotation(yaw), self.palm, RotationMatrix(), rot_tol
+        )
         q = ik.q()
         prog = ik.get_mutable_prog()
         prog.AddQuadraticErrorCost(np.eye(6), np.asarray(q_seed, float), q)
         prog.SetInitialGuess(q, np.asarray(q_seed, float))
         result = Solve(prog)
         if not result.is_success():
-            raise MogError(f"no arm configuration reaches the gripper pose {np.round(p, 3).tolist()} "
-                           f"yaw {np.degrees(yaw):.0f} deg")
+            raise MogError(
+                f"no arm configuration reaches the gripper pose {np.round(p, 3).tolist()} "
+                f"yaw {np.degrees(yaw):.0f} deg"
+            )
         return result.GetSolution(q)
 
     def vertical(self, xy, z0: float, z1: float, yaw: float, q_seed) -> np.ndarray:
@@ -91,13 +107,18 @@ class ArmMotion:
             W = np.vstack([W, W])
         d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(W, axis=0), axis=1))])
         if d[-1] < 1e-6:
-            return PathParameterizedTrajectory(PiecewisePolynomial.ZeroOrderHold([0.0, 1.0], W[:2].T),
-                                               PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], [[0.0, 1.0]]))
+            return PathParameterizedTrajectory(
+                PiecewisePolynomial.ZeroOrderHold([0.0, 1.0], W[:2].T),
+                PiecewisePolynomial.FirstOrderHold([0.0, 1e-3], [[0.0, 1.0]]),
+            )
         s = d / d[-1]
         keep = np.concatenate([[True], np.diff(s) > 1e-9])
         s, W = s[keep], W[keep]
-        path = (PiecewisePolynomial.CubicWithContinuousSecondDerivatives(s, W.T, np.zeros(6), np.zeros(6))
-                if len(s) > 2 else PiecewisePolynomial.FirstOrderHold(s, W.T))
+        path = (
+            PiecewisePolynomial.CubicWithContinuousSecondDerivatives(s, W.T, np.zeros(6), np.zeros(6))
+            if len(s) > 2
+            else PiecewisePolynomial.FirstOrderHold(s, W.T)
+        )
         grid = Toppra.CalcGridPoints(path, CalcGridPointsOptions())
         toppra = Toppra(path, self.plant, grid)
         toppra.AddJointVelocityLimit(-self.vmax * np.ones(6), self.vmax * np.ones(6))
@@ -124,7 +145,9 @@ class ArmMotion:
             if best is None or np.abs(q_above - q_start).sum() < np.abs(best[1] - q_start).sum():
                 best = (yaw, q_above)
         if best is None:
-            raise MogError(f"no arm configuration reaches above the grasp at {np.round(grasp[:2], 3).tolist()}")
+            raise MogError(
+                f"no arm configuration reaches above the grasp at {np.round(grasp[:2], 3).tolist()}"
+            )
         yaw, q_above = best
         down = self.vertical(grasp[:2], z_above, z_grasp, yaw, q_above)
         up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])

@@ -24,35 +24,68 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     library = handles.scene.library if handles.scene is not None else default_library()
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
-    perception = builder.AddNamedSystem("perception", PerceptionSystem(scenario.camera, scenario.table, library))
+    perception = builder.AddNamedSystem(
+        "perception", PerceptionSystem(scenario.camera, scenario.table, library)
+    )
     vcfg = VerifierConfig(contact=scenario.contact, physics=scenario.gripper)
-    planner = GraspPlanner(verifier or DrakeVerifier(vcfg),
-                           PlannerConfig(method="gp", n_positions=scenario.planner.n_positions,
-                                         n_orientations=scenario.planner.n_orientations))
-    planner_sys = builder.AddNamedSystem("planner", PlannerSystem(planner, scenario.planner.mode,
-                                                                  scenario.planner.seed))
-    motion = ArmMotion(scenario.robot.base, FLANGE_TO_PALM, scenario.robot.max_joint_speed,
-                       scenario.robot.max_joint_acceleration,
-                       MotionConfig(finger_height=scenario.gripper.finger_height,
-                                    finger_clearance=scenario.gripper.finger_clearance))
+    planner = GraspPlanner(
+        verifier or DrakeVerifier(vcfg),
+        PlannerConfig(
+            method="gp",
+            n_positions=scenario.planner.n_positions,
+            n_orientations=scenario.planner.n_orientations,
+        ),
+    )
+    planner_sys = builder.AddNamedSystem(
+        "planner", PlannerSystem(planner, scenario.planner.mode, scenario.planner.seed)
+    )
+    motion = ArmMotion(
+        scenario.robot.base,
+        FLANGE_TO_PALM,
+        scenario.robot.max_joint_speed,
+        scenario.robot.max_joint_acceleration,
+        MotionConfig(
+            finger_height=scenario.gripper.finger_height, finger_clearance=scenario.gripper.finger_clearance
+        ),
+    )
     open_width = 0.075
     close_time = open_width / 2 / scenario.gripper.close_speed + 0.2
-    controller = builder.AddNamedSystem("controller", ControllerSystem(
-        motion, scenario.robot.home, scenario.bin.center, scenario.bin.depth, open_width=open_width,
-        close_time=close_time, time_limit=scenario.time_limit))
+    controller = builder.AddNamedSystem(
+        "controller",
+        ControllerSystem(
+            motion,
+            scenario.robot.home,
+            scenario.bin.center,
+            scenario.bin.depth,
+            open_width=open_width,
+            close_time=close_time,
+            time_limit=scenario.time_limit,
+        ),
+    )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
-    builder.Connect(station.GetOutputPort("camera.depth_image"), perception.GetInputPort("camera.depth_image"))
+    builder.Connect(
+        station.GetOutputPort("camera.depth_image"), perception.GetInputPort("camera.depth_image")
+    )
     builder.Connect(controller.GetOutputPort("request"), perception.GetInputPort("request"))
     builder.Connect(perception.GetOutputPort("scene"), planner_sys.GetInputPort("scene"))
     builder.Connect(planner_sys.GetOutputPort("decision"), controller.GetInputPort("decision"))
-    builder.Connect(station.GetOutputPort("ur5.position_measured"), controller.GetInputPort("ur5.position_measured"))
-    builder.Connect(station.GetOutputPort("gripper.state_measured"), controller.GetInputPort("gripper.state_measured"))
+    builder.Connect(
+        station.GetOutputPort("ur5.position_measured"), controller.GetInputPort("ur5.position_measured")
+    )
+    builder.Connect(
+        station.GetOutputPort("gripper.state_measured"), controller.GetInputPort("gripper.state_measured")
+    )
     builder.Connect(controller.GetOutputPort("ur5.position"), station.GetInputPort("ur5.position"))
     builder.Connect(controller.GetOutputPort("gripper.position"), station.GetInputPort("gripper.position"))
     diagram = builder.Build()
     diagram.set_name("mog_drake_pick")
-    return diagram, {"station": station, "handles": handles, "perception": perception, "planner": planner_sys,
-                     "controller": controller}
+    return diagram, {
+        "station": station,
+        "handles": handles,
+        "perception": perception,
+        "planner": planner_sys,
+        "controller": controller,
+    }
 
 
 @dataclass
@@ -75,7 +108,9 @@ class PickRun:
             "success_rate": len(succ) / n if n else float("nan"),
             "picked_pct": 100.0 * self.in_bin / self.objects if self.objects else float("nan"),
             "objects_per_success": (sum(a["picked"] for a in succ) / len(succ)) if succ else float("nan"),
-            "pph": 3600.0 * self.in_bin / (robot_time + planning) if robot_time + planning > 0 else float("nan"),
+            "pph": 3600.0 * self.in_bin / (robot_time + planning)
+            if robot_time + planning > 0
+            else float("nan"),
             "robot_time_s": robot_time,
             "planning_time_s": planning,
             "wall_time_s": self.wall_time,
@@ -95,8 +130,15 @@ def objects_in_bin(plant, plant_context, bodies, scenario: Scenario) -> list[int
     return out
 
 
-def run_pick(scenario: Scenario, scene=None, meshcat=None, on_attempt=None, verifier=None,
-             hardware_clients=None, realtime: bool = False) -> PickRun:
+def run_pick(
+    scenario: Scenario,
+    scene=None,
+    meshcat=None,
+    on_attempt=None,
+    verifier=None,
+    hardware_clients=None,
+    realtime: bool = False,
+) -> PickRun:
     """Runs the diagram until the table is clear, no grasp is found, or the time limit. In
     simulation each attempt is scored from ground truth (objects in the bin); on hardware there
     is no ground truth and ``picked`` is None."""
