@@ -148,7 +148,12 @@ class Scenario:
     robot: RobotSpec = field(default_factory=RobotSpec)
     bin: BinSpec = field(default_factory=BinSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)
-    contact: ContactConfig = field(default_factory=ContactConfig)
+    # The world's contact: a real table has friction (0.3 here: laminate under wood or plastic).
+    # On the paper's near-frictionless table, objects squeezed out of a grasp slide off the
+    # table for good; that model is the planner's (see planner_contact), not the world's.
+    contact: ContactConfig = field(default_factory=lambda: ContactConfig(mu_table=0.3))
+    # The grasp verifier's model (the paper's CheckGraspSuccess): near-frictionless table.
+    planner_contact: ContactConfig = field(default_factory=ContactConfig)
     gripper: GripperPhysics = field(default_factory=GripperPhysics)
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])

@@ -27,7 +27,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     perception = builder.AddNamedSystem(
         "perception", PerceptionSystem(scenario.camera, scenario.table, library)
     )
-    vcfg = VerifierConfig(contact=scenario.contact, physics=scenario.gripper)
+    vcfg = VerifierConfig(contact=scenario.planner_contact, physics=scenario.gripper)
     planner = GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
