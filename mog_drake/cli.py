@@ -329,22 +329,7 @@ def cmd_eval(args) -> int:
             args.scenes, modes, args.seed, out, args.objects, args.time_limit, jobs, args.ray, progress
         )
         png = figures.picking_figure(summary, out / "picking.png")
-        text = format_table(
-            summary["rows"],
-            [
-                "mode",
-                "scenes",
-                "success_rate",
-                "success_rate_ci",
-                "picked_pct",
-                "picked_pct_ci",
-                "pph",
-                "pph_ci",
-                "objects_per_success",
-                "paper_success_rate",
-                "paper_pph",
-            ],
-        )
+        text = format_table(summary["rows"], picking_eval.COLUMNS)
         text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
         import json as _json
 
@@ -395,20 +380,7 @@ def cmd_eval(args) -> int:
             args.orientations,
         )
         png = figures.planner_figure(summary, out / "planner.png")
-        text = format_table(
-            summary["rows"],
-            [
-                "class",
-                "method",
-                "scenes",
-                "time_s",
-                "time_ci",
-                "tested",
-                "tested_ci",
-                "found_pct",
-                "gp_speedup",
-            ],
-        )
+        text = format_table(summary["rows"], planning_eval.COLUMNS)
     import json as _json
 
     (out / "summary.json").write_text(_json.dumps(summary, indent=2))

@@ -14,6 +14,22 @@ PAPER_TABLE1 = {
 }
 
 
+#: The summary's columns, in the order tables print them.
+COLUMNS = [
+    "mode",
+    "scenes",
+    "success_rate",
+    "success_rate_ci",
+    "picked_pct",
+    "picked_pct_ci",
+    "pph",
+    "pph_ci",
+    "objects_per_success",
+    "paper_success_rate",
+    "paper_pph",
+]
+
+
 def picking_worker(task: dict) -> dict:
     from dataclasses import replace
 

@@ -15,6 +15,8 @@ from mog_drake.experiments.stats import mean_ci, proportion_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
 
 PAPER_METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys")
+#: The summary's columns, in the order tables print them.
+COLUMNS = ["class", "method", "scenes", "time_s", "time_ci", "tested", "tested_ci", "found_pct", "gp_speedup"]
 
 
 def planner_worker(task: dict) -> dict:
