@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 from pydrake.geometry import (
+    Box,
     ClippingRange,
     CollisionFilterDeclaration,
     ColorRenderCamera,
@@ -35,7 +36,7 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant
-from pydrake.multibody.tree import PdControllerGains
+from pydrake.multibody.tree import PdControllerGains, SpatialInertia
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
@@ -218,14 +219,12 @@ class _ArmPositions(LeafSystem):
         )
 
 
-def scene_from_spec(spec: SceneSpec, table):
-    import numpy as _np
-
+def scene_from_spec(spec: SceneSpec):
     from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
 
     if spec.file:
         return Scene.load(spec.file)
-    rng = _np.random.default_rng(spec.seed)
+    rng = np.random.default_rng(spec.seed)
     if spec.kind == "row":
         return row_scene(spec.row_class, rng)
     if spec.kind == "cluttered":
@@ -254,7 +253,7 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
         from mog_drake.hardware.station import MakeHardwareStation
 
         return MakeHardwareStation(scenario, **(hardware_clients or {}))
-    scene = scene or scene_from_spec(scenario.scene, scenario.table)
+    scene = scene or scene_from_spec(scenario.scene)
     gripper = GripperGeometry()
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(scenario.contact.plant_config(), builder)
@@ -282,16 +281,12 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
             PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
         )
     # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
-    from pydrake.multibody.tree import SpatialInertia
-
     palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
     plant.WeldFrames(
         plant.GetFrameByName("tool0", robot),
         palm.body_frame(),
         RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, FLANGE_TO_PALM]),
     )
-    from pydrake.geometry import Box
-
     plant.RegisterVisualGeometry(
         palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
     )

@@ -8,7 +8,6 @@ negative: a true negative if physics fails too, a false negative if physics lift
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -176,8 +175,6 @@ def run(
     n_orientations: int = 7,
 ) -> tuple[dict, list[dict]]:
     """Runs (or resumes) the sweep in ``out_dir``; returns (summary, per-scene results)."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     check_params(
         out_dir,
         {

@@ -3,8 +3,6 @@ cluttered tables, with 95 % confidence intervals."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
 
@@ -96,8 +94,6 @@ def run(
     ray_address=None,
     progress: bool = True,
 ) -> tuple[dict, list[dict]]:
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     modes = list(modes)
     check_params(
         out_dir,

@@ -6,8 +6,6 @@ Every method plans on the same seeded row scenes in the same run, each from a fr
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from mog_drake.experiments.conditions import row_tasks
@@ -92,8 +90,6 @@ def run(
     n_positions: int = 70,
     n_orientations: int = 7,
 ) -> tuple[dict, list[dict]]:
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     methods = list(methods)
     check_params(
         out_dir,

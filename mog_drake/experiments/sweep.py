@@ -35,6 +35,8 @@ def load_results(path: Path) -> dict[str, dict]:
 def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes_per_class",)) -> None:
     """Records the sweep's parameters; refuses to resume a folder made with different ones
     (except the ``growable`` ones, which may change: a larger sweep extends a smaller one)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "sweep.json"
     if path.exists():
         old = json.loads(path.read_text())

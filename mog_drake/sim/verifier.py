@@ -214,8 +214,11 @@ class DrakeVerifier:
         j = sim.gripper.joints
         z0 = sim.script.z_grasp
         g = self.gripper
-        for joint, q in zip(j, (grasp[0], grasp[1], z0, grasp[2], -g.opening / 2, g.opening / 2)):
-            joint.set_translation(pc, q) if hasattr(joint, "set_translation") else joint.set_angle(pc, q)
+        for joint, q in zip(
+            (j[0], j[1], j[2], j[4], j[5]), (grasp[0], grasp[1], z0, -g.opening / 2, g.opening / 2)
+        ):
+            joint.set_translation(pc, q)
+        j[3].set_angle(pc, grasp[2])  # yaw
         timeline = cfg.timeline(g)
         t_end = timeline["end"]
         deadline = t0 + cfg.wall_budget

@@ -211,8 +211,6 @@ class ControllerSystem(LeafSystem):
             new.mode, new.t_mode = "lift", t
         elif s.mode == "open" and dt >= self._open_time:
             new.mode, new.t_mode = "home", t
-        elif s.mode == "open" and new.gripper != self._open:
-            new.gripper = self._open
         if s.mode == "to_bin" and new.mode == "open":
             new.gripper = self._open
         state.get_mutable_abstract_state(self._state).set_value(new)
