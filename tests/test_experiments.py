@@ -113,3 +113,36 @@ def test_tiny_planner_sweep_end_to_end(tmp_path):
         for k in ("time_s", "time_ci", "tested", "tested_ci", "found_pct", "gp_speedup"):
             assert k in r
     assert rows["gp"]["gp_speedup"] == pytest.approx(1.0)
+
+
+def test_scene_memo_simulates_each_candidate_once_and_charges_its_time():
+    from mog_drake.planning.protocol import GraspResult
+
+    class Slow:
+        """A verifier whose every real check 'takes' 2 s, the first one 5 s more to build."""
+
+        last_build_time = 5.0
+
+        def __init__(self):
+            self.runs = 0
+
+        def check(self, scene, group, grasp):
+            self.runs += 1
+            built = self.runs == 1
+            return GraspResult(bool(grasp[0] > 0), wall_time=2.0 + (5.0 if built else 0.0), built=built)
+
+    memo = planning_eval.SceneMemo(Slow())
+    memo.start_method()
+    a = memo.check(None, [0, 1], [1.0, 0.0, 0.0])
+    memo.check(None, [0, 1], [-1.0, 0.0, 0.0])
+    assert a.success and memo.charged == 0.0 and memo.replayed == 0 and memo.verifier.runs == 2
+
+    memo.start_method()  # a second method: one replay, one new check, plus its own build
+    b = memo.check(None, [0, 1], [1.0, 0.0, 0.0])
+    assert b is a and memo.replayed == 1 and memo.charged == pytest.approx(2.0 + 5.0)
+    memo.check(None, [0, 1], [2.0, 0.0, 0.0])
+    assert memo.verifier.runs == 3 and memo.replayed == 1 and memo.charged == pytest.approx(7.0)
+
+    memo.start_method()  # a method whose first check is new still pays a build
+    memo.check(None, [0, 1], [3.0, 0.0, 0.0])
+    assert memo.charged == pytest.approx(5.0)

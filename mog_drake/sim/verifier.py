@@ -195,6 +195,11 @@ class DrakeVerifier:
         self._cache_key = key
         return self._sim, True
 
+    @property
+    def last_build_time(self) -> float:
+        """Seconds the current plant took to build (0 before the first check)."""
+        return 0.0 if self._sim is None else self._sim.build_time
+
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
         grasp = np.asarray(grasp, dtype=float)
