@@ -127,8 +127,17 @@ class Perceiver:
         self.config = config or PerceptionConfig()
         self.table = table
         names = list(self.config.shapes) or list(self.library.shapes)
+        # Toppled bars too: the same colour, a different top height and footprint.
+        names += [v for v in self.library.resting_variants() if self.library.base_shape(v) in names]
         self.names = names
         self.chroma = np.array([chromaticity(np.array(self.library[n].color[:3])) for n in names])
+        # Shapes of one colour share a colour class (the first of them); height tells them apart.
+        self.colour_class = np.array(
+            [
+                next(j for j in range(len(names)) if np.allclose(self.chroma[j], self.chroma[k]))
+                for k in range(len(names))
+            ]
+        )
         self.sym = {n: symmetry_order(self.library[n].vertices) for n in names}
 
     def perceive(
@@ -147,7 +156,7 @@ class Perceiver:
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.
         area_px = (np.asarray(depth, float).reshape(rgb.shape[:2]) ** 2) / (fx * fy)
         ch = chromaticity(rgb[..., :3])[obj]
-        cls = np.argmin(((ch[:, None, :] - self.chroma[None]) ** 2).sum(-1), axis=1)
+        cls = self.colour_class[np.argmin(((ch[:, None, :] - self.chroma[None]) ** 2).sum(-1), axis=1)]
         pts, z, w = P[obj][:, :2], P[obj][:, 2], area_px[obj]
         negatives = P[table][:, :2]
         rng = np.random.default_rng(seed)
@@ -158,8 +167,9 @@ class Perceiver:
         for k in order:
             name = self.names[k]
             shape = self.library[name]
+            colour = cls == self.colour_class[k]
             top = np.abs(z - shape.height) < 0.004
-            mine = np.flatnonzero((cls == k) & top)
+            mine = np.flatnonzero(colour & top)
             for members in _clusters(pts[mine], 0.0025):
                 idx = mine[members]
                 n_est = int(round(w[idx].sum() / shape.area))
@@ -167,12 +177,12 @@ class Perceiver:
                     continue
                 n_est = max(n_est, 1)
                 for centre in _kmeans(pts[idx], min(n_est, len(idx)), rng):
-                    pose = self._fit(shape, name, pts, idx, explained, negatives, pts[cls != k], centre)
+                    pose = self._fit(shape, name, pts, idx, explained, negatives, pts[~colour], centre)
                     if pose is None:
                         continue
                     poly = transform(shape.vertices, *pose)
                     inside = _soft_inside(pts, poly, cfg.softness) > 0.5
-                    explained |= inside & (cls == k)
+                    explained |= inside & colour
                     found.append(SceneObject(name, *pose))
         # Object points no fitted polygon explains (a prism knocked onto its side, say, or
         # something not in the library): reported, so nobody calls such a table clear.

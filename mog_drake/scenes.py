@@ -116,6 +116,19 @@ def make_shape(name: str, spec: dict) -> Shape:
     )
 
 
+def _box_dims(vertices: np.ndarray) -> tuple[float, float] | None:
+    """Side lengths of a rectangle's polygon, or None if it is not a rectangle."""
+    v = np.asarray(vertices, dtype=float)
+    if len(v) != 4:
+        return None
+    e = np.roll(v, -1, axis=0) - v
+    lengths = np.linalg.norm(e, axis=1)
+    cos = np.abs((e * np.roll(e, -1, axis=0)).sum(1)) / (lengths * np.roll(lengths, -1))
+    if np.any(cos > 1e-6):
+        return None
+    return float(lengths[0]), float(lengths[1])
+
+
 def _positive(v, what: str) -> float:
     try:
         f = float(v)
@@ -181,10 +194,54 @@ class ShapeLibrary:
             self.bars = tuple(str(b) for b in data["bars"])
 
     def __getitem__(self, name: str) -> Shape:
-        try:
-            return self.shapes[name]
-        except KeyError:
-            raise MogError(f"unknown shape '{name}' (known: {', '.join(sorted(self.shapes))})") from None
+        shape = self.shapes.get(name) or self.resting_variants().get(name)
+        if shape is None:
+            raise MogError(f"unknown shape '{name}' (known: {', '.join(sorted(self.shapes))})")
+        return shape
+
+    def resting_variants(self) -> dict[str, Shape]:
+        """A rectangular prism knocked over is again a rectangular prism: ``NAME:on_side``
+        lies on its long side face (footprint length x height, as tall as it was wide) and
+        ``NAME:on_end`` stands on its end face. Same box, same mass, same colour, so the
+        planner and the verifier treat a toppled bar exactly. Cubes (no new box) are skipped.
+        Perception looks for these; scene generators never draw them."""
+        key = tuple(sorted(self.shapes))
+        if getattr(self, "_variants_key", None) != key:
+            out: dict[str, Shape] = {}
+            for name, shape in self.shapes.items():
+                dims = _box_dims(shape.vertices)
+                if dims is None:
+                    continue
+                a, b = max(dims), min(dims)
+                h = shape.height
+                seen = {(round(b, 5), round(a, 5), round(h, 5))}
+                for suffix, (w, d, top) in (("on_side", (a, h, b)), ("on_end", (b, h, a))):
+                    box = (*sorted((round(w, 5), round(d, 5))), round(top, 5))
+                    if box in seen:
+                        continue  # the same box as a pose already listed
+                    seen.add(box)
+                    half = np.array([w, d]) / 2
+                    verts = [
+                        [half[0], half[1]],
+                        [-half[0], half[1]],
+                        [-half[0], -half[1]],
+                        [half[0], -half[1]],
+                    ]
+                    out[f"{name}:{suffix}"] = make_shape(
+                        f"{name}:{suffix}",
+                        {
+                            "vertices": verts,
+                            "height": top,
+                            "density": shape.density,
+                            "color": list(shape.color),
+                        },
+                    )
+            self._variants, self._variants_key = out, key
+        return self._variants
+
+    def base_shape(self, name: str) -> str:
+        """The library shape a resting variant is a pose of (the name itself otherwise)."""
+        return name.split(":", 1)[0]
 
     def inventory(self, name: str) -> list[str]:
         """The inventory as a list of shape names, one entry per object, in a fixed order."""

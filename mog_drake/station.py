@@ -117,11 +117,14 @@ class CameraSpec:
 
 @dataclass
 class PlannerSpec:
-    method: str = "gp"
+    method: str = "gp"  # gp | rand-phys | rank-phys | rand-fil-phys
     mode: str = "mog"  # mog | sog
     n_positions: int = 70
     n_orientations: int = 7
     seed: int = 0
+    # Physics checks per group before the next group is tried (0: no cap). In clutter most
+    # groups that have a grasp show it in the first few ranked candidates.
+    max_physics_per_group: int = 8
 
 
 @dataclass
@@ -167,9 +170,29 @@ def load_scenario(path: str | None = None) -> Scenario:
     if not path:
         return Scenario()
     try:
-        return yaml_load_typed(schema=Scenario, filename=str(path), defaults=Scenario())
+        sc = yaml_load_typed(schema=Scenario, filename=str(path), defaults=Scenario())
     except RuntimeError as e:
         raise MogError(f"{path}: {str(e).splitlines()[0]}") from None
+    try:
+        check_planner_spec(sc.planner)
+    except MogError as e:
+        raise MogError(f"{path}: {e}") from None
+    return sc
+
+
+def check_planner_spec(spec: PlannerSpec) -> None:
+    """Refuses a planner setting that would only fail once the robot is running."""
+    from mog_drake.planning.picking import MODES
+    from mog_drake.planning.planner import METHODS
+
+    if spec.method not in METHODS or spec.method == "single":
+        raise MogError(
+            f"planner.method must be one of gp, rand-phys, rank-phys, rand-fil-phys, got {spec.method!r}"
+        )
+    if spec.mode not in MODES:
+        raise MogError(f"planner.mode must be one of {', '.join(MODES)}, got {spec.mode!r}")
+    if spec.max_physics_per_group < 0 or spec.n_positions < 1 or spec.n_orientations < 1:
+        raise MogError("planner: max_physics_per_group must be >= 0, n_positions and n_orientations >= 1")
 
 
 class _DesiredState(LeafSystem):

@@ -196,3 +196,49 @@ def test_tiny_picking_evaluation(tmp_path):
             assert k in r
     assert summary["pph_ratio_mog_over_sog"] > 0
     assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
+
+
+def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
+    """A bar knocked onto its side is the same box lying down: perception names it
+    `thin_bar:on_side` (not an unrecognised blob), even pressed against upright objects."""
+    from conftest import make_scene
+
+    from mog_drake.perception import Perceiver, pose_errors
+
+    truth = make_scene(
+        [
+            ("thin_bar:on_side", 0.0, 0.0, 0.3),
+            # upright, 0.5 mm from the toppled one's long side
+            ("thin_bar", -0.019 * math.sin(0.3), 0.019 * math.cos(0.3), 0.3),
+            ("thick_bar:on_side", 0.07, -0.02, -0.5),
+            ("large_hexagon", 0.07, 0.04, 0.0),
+            ("thick_bar:on_end", -0.07, 0.05, 1.0),
+        ]
+    )
+    truth.save(tmp_path / "toppled.yaml")
+    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "toppled.yaml")))
+    d, h = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    info = sc.camera.info()
+    seen = Perceiver(table=sc.table).perceive(
+        d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
+        d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0],
+        sc.camera.X_WC().GetAsMatrix4(),
+        (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+    )
+    errs = pose_errors(seen, truth)
+    assert sorted(o.shape for o in seen.objects) == sorted(o.shape for o in truth.objects)
+    assert seen.meta["unrecognised_blobs"] == 0
+    assert max(e["position"] for e in errs) <= 0.003
+    assert max(math.degrees(e["yaw"]) for e in errs) <= 3.0
+
+
+def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
+    from mog_drake.errors import MogError
+
+    f = tmp_path / "bad.yaml"
+    f.write_text("planner:\n  method: fastest\n")
+    with pytest.raises(MogError, match="planner.method .*'fastest'"):
+        load_scenario(str(f))

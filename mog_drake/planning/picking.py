@@ -79,7 +79,7 @@ def next_pick(
         groups = [(int(i),) for i in rng.permutation(len(scene))]
     decision = PickDecision("no_grasp")
     for group in groups:
-        res = planner.plan(scene, group, rng=rng, method="gp")
+        res = planner.plan(scene, group, rng=rng)
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested

@@ -9,7 +9,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.planning.planner import GraspPlanner, PlannerConfig
-from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario
+from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario, check_planner_spec
 from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, PlannerSystem
 from mog_drake.systems.motion import ArmMotion, MotionConfig
 
@@ -18,6 +18,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     """Wires the application to a station by port name. Returns (diagram, parts)."""
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
+    check_planner_spec(scenario.planner)
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
     from mog_drake.scenes import default_library
 
@@ -31,9 +32,10 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     planner = GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
-            method="gp",
+            method=scenario.planner.method,
             n_positions=scenario.planner.n_positions,
             n_orientations=scenario.planner.n_orientations,
+            max_physics=scenario.planner.max_physics_per_group or None,
         ),
     )
     planner_sys = builder.AddNamedSystem(
