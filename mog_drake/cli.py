@@ -355,7 +355,10 @@ def cmd_eval(args) -> int:
         cols = conditions.COLUMNS
         text = format_table(summary["rows"], cols)
         fns = summary["false_negatives"]
-        text += f"\n\nfalse negatives: {len(fns)}" + "".join(f"\n  {f['replay']}" for f in fns[:20])
+        text += f"\n\nfalse negatives: {len(fns)}" + "".join(
+            f"\n  class {f['class']}, scene {f['scene_seed']}: {f['explanation']}\n    {f['replay']}"
+            for f in fns[:20]
+        )
         if len(fns) > 20:
             text += f"\n  ... {len(fns) - 20} more in {out / 'summary.json'}"
     else:

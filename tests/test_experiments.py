@@ -146,3 +146,21 @@ def test_scene_memo_simulates_each_candidate_once_and_charges_its_time():
     memo.start_method()  # a method whose first check is new still pays a build
     memo.check(None, [0, 1], [3.0, 0.0, 0.0])
     assert memo.charged == pytest.approx(5.0)
+
+
+def test_a_false_negative_is_replayed_and_explained():
+    """Class 2, scene 20006: a candidate the diameter condition rejects that physics lifts.
+    Replayed from the exact candidate, the jaws stop below h_fmin: a friction grasp."""
+    fn = {
+        "class": 2,
+        "scene_seed": 20006,
+        "grasp": [0.0024381, -0.0084481, 1.7951958],  # as recorded (rounded)
+        "diameter_ok": False,
+        "area_ok": True,
+        "n_positions": 70,
+        "n_orientations": 7,
+    }
+    (out,) = conditions.explain_false_negatives([fn])
+    assert out["replayed_success"]
+    assert out["h0_mm"] < out["h_fmin_mm"] and out["final_opening_mm"] < out["h_fmin_mm"]
+    assert out["explanation"].startswith("held by friction")
