@@ -125,6 +125,9 @@ class PlannerSpec:
     # Physics checks per group before the next group is tried (0: no cap). In clutter most
     # groups that have a grasp show it in the first few ranked candidates.
     max_physics_per_group: int = 8
+    # mog only, an extension of Alg. 1: a candidate seen to lift part of a larger group is a
+    # verified grasp of that part, taken once no larger group is left to try.
+    partial_lifts: bool = True
 
 
 @dataclass

@@ -151,3 +151,38 @@ def test_unrecognised_blobs_are_not_a_clear_table():
 
     empty = Scene([], make_scene([]).library, meta={"unrecognised_blobs": 1})
     assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"
+
+
+def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
+    """Three bars in a row: physics never lifts all three, but one candidate lifts two.
+    With partial lifts that verified pair is the grasp (no pair or single is planned);
+    without, Alg. 1 goes on to the singles."""
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene(
+        [
+            ("thin_bar", -0.012, 0.0, math.pi / 2),
+            ("thin_bar", 0.0, 0.0, math.pi / 2),
+            ("thin_bar", 0.012, 0.0, math.pi / 2),
+            ("small_yellow_cube", 0.15, 0.15, 0.0),
+        ]
+    )
+
+    class LiftsTwoOnce(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            if tuple(group) == (0, 1, 2) and len(self.asked) == 2:
+                return GraspResult(False, lifted=[0, 1])  # the 2nd candidate lifts a pair
+            if len(group) == 1:
+                return GraspResult(True, lifted=list(group))
+            return GraspResult(False)
+
+    v = LiftsTwoOnce()
+    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)))
+    assert d.status == "grasp" and d.partial and d.group == (0, 1)
+    assert set(v.asked) == {(0, 1, 2)} and d.groups_tried == 1
+    np.testing.assert_allclose(d.grasp, d.plans[0].candidate_grasps[d.plans[0].tested_indices[1]])
+
+    v = LiftsTwoOnce()
+    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), partial_lifts=False)
+    assert d.status == "grasp" and not d.partial and len(d.group) == 1

@@ -33,6 +33,7 @@ class PickDecision:
     grasp: np.ndarray | None = None
     group: tuple[int, ...] = ()
     groups_tried: int = 0
+    partial: bool = False  # the grasp lifted part of a larger group it was planned for
     physics_checks: int = 0
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
@@ -43,6 +44,7 @@ class PickDecision:
             "grasp": None if self.grasp is None else [float(v) for v in self.grasp],
             "group": list(self.group),
             "groups_tried": self.groups_tried,
+            "partial": self.partial,
             "physics_checks": self.physics_checks,
             "planning_time": self.planning_time,
         }
@@ -54,12 +56,18 @@ def next_pick(
     mode: str = "mog",
     rng: np.random.Generator | None = None,
     group_radius: float = DEFAULT_GROUP_RADIUS,
+    partial_lifts: bool = True,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
     mode "mog": Alg. 1, the largest groups first. mode "sog": the paper's single-object
     baseline, the same planner restricted to one object chosen at random (objects are tried
-    in a random order until one has a grasp)."""
+    in a random order until one has a grasp).
+
+    partial_lifts (mog only; an extension of Alg. 1): a candidate that the physics check saw
+    lift only k objects of a larger group is still a verified grasp of those k. Once every
+    group left to try has at most k objects, that grasp is taken instead of planning them, and
+    it is taken rather than giving up when no group succeeds."""
     if mode not in MODES:
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
     t0 = time.perf_counter()
@@ -77,8 +85,12 @@ def next_pick(
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
         groups = [(int(i),) for i in rng.permutation(len(scene))]
+    partial_lifts = partial_lifts and mode == "mog"
     decision = PickDecision("no_grasp")
+    best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     for group in groups:
+        if partial_lifts and best is not None and len(best[1]) >= len(group):
+            break
         res = planner.plan(scene, group, rng=rng)
         decision.plans.append(res)
         decision.groups_tried += 1
@@ -86,5 +98,10 @@ def next_pick(
         if res.found:
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
             break
+        if res.best_lift is not None and (best is None or len(res.best_lift[1]) > len(best[1])):
+            best = res.best_lift
+    if decision.status != "grasp" and partial_lifts and best is not None:
+        decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
+        decision.partial = True
     decision.planning_time = time.perf_counter() - t0
     return decision

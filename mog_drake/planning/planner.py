@@ -61,6 +61,9 @@ class PlanResult:
     result: GraspResult | None = None  # physics result of the returned grasp (or the last tested)
     tested_indices: list[int] = field(default_factory=list)  # candidate indices in the order simulated
     candidate_grasps: np.ndarray | None = None
+    # The tested candidate that lifted the most objects without an error, even if not the
+    # whole group: (grasp, lifted ids). A verified grasp of those objects.
+    best_lift: tuple[np.ndarray, list[int]] | None = None
 
     @property
     def found(self) -> bool:
@@ -131,16 +134,20 @@ class GraspPlanner:
             order = order[passed[order]]  # GraspFailure(): drop candidates violating a condition
             times["filter"] += time.perf_counter() - t
 
-        grasp, last, tested = None, None, []
+        grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()
         for i in order:
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
+            if not last.error and last.lifted and (best_lift is None or len(last.lifted) > len(best_lift[1])):
+                best_lift = (cands[i].copy(), sorted(int(k) for k in last.lifted))
             if last.success:
                 grasp = cands[i].copy()
                 break
         times["physics"] = time.perf_counter() - t
         times["total"] = time.perf_counter() - t_start
-        return PlanResult(method, group, grasp, len(cands), n_passed, len(tested), times, last, tested, cands)
+        return PlanResult(
+            method, group, grasp, len(cands), n_passed, len(tested), times, last, tested, cands, best_lift
+        )

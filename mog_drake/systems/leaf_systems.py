@@ -81,10 +81,13 @@ class PerceptionSystem(LeafSystem):
 class PlannerSystem(LeafSystem):
     """scene -> decision: Alg. 1 (mog) or the single-object baseline (sog) once per new scene."""
 
-    def __init__(self, planner, mode: str = "mog", seed: int = 0, period: float = 0.01):
+    def __init__(
+        self, planner, mode: str = "mog", seed: int = 0, period: float = 0.01, partial_lifts: bool = True
+    ):
         super().__init__()
         self._planner = planner
         self._mode = mode
+        self._partial_lifts = partial_lifts
         self._rng = np.random.default_rng(seed)
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(Decision()))
@@ -101,7 +104,7 @@ class PlannerSystem(LeafSystem):
         cur = context.get_abstract_state(self._state).get_value()
         if p.scene is None or p.counter <= cur.counter:
             return
-        d = next_pick(p.scene, self._planner, self._mode, self._rng)
+        d = next_pick(p.scene, self._planner, self._mode, self._rng, partial_lifts=self._partial_lifts)
         state.get_mutable_abstract_state(self._state).set_value(Decision(p.counter, d, len(p.scene)))
 
     def _out(self, context, output) -> None:

@@ -39,7 +39,13 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
         ),
     )
     planner_sys = builder.AddNamedSystem(
-        "planner", PlannerSystem(planner, scenario.planner.mode, scenario.planner.seed)
+        "planner",
+        PlannerSystem(
+            planner,
+            scenario.planner.mode,
+            scenario.planner.seed,
+            partial_lifts=scenario.planner.partial_lifts,
+        ),
     )
     motion = ArmMotion(
         scenario.robot.base,
