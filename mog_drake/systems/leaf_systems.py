@@ -24,15 +24,27 @@ from mog_drake.perception import Perceiver, PerceptionConfig
 from mog_drake.planning.picking import PickDecision, next_pick
 
 
+class _Immutable:
+    """State values that are replaced, never changed in place. Drake copies abstract state
+    (every unrestricted update copies the whole state); a deep copy of a perceived Scene or a
+    motion plan per 10 ms tick cost a third of a pick run's wall time, so copies share."""
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+
 @dataclass
-class Perceived:
+class Perceived(_Immutable):
     counter: int = -1
     scene: object = None
     wall_time: float = 0.0
 
 
 @dataclass
-class Decision:
+class Decision(_Immutable):
     counter: int = -1
     decision: PickDecision | None = None
     objects_seen: int = 0
@@ -112,7 +124,9 @@ class PlannerSystem(LeafSystem):
 
 
 @dataclass
-class ControllerState:
+class ControllerState(_Immutable):
+    """Replaced by a new value on every change (``attempts`` is a new list of new dicts)."""
+
     mode: str = "settle"
     t_mode: float = 0.0
     counter: int = 0
@@ -207,10 +221,10 @@ class ControllerSystem(LeafSystem):
                 if s.mode == "approach":
                     new.gripper = 0.0
                 if s.mode == "home":
-                    new.attempts[-1]["end"] = t
+                    new.attempts[-1] = {**new.attempts[-1], "end": t}
                     new.plan = None
         elif s.mode == "close" and dt >= self._close_time:
-            new.attempts[-1]["held_width"] = float(self._g.Eval(context)[0])
+            new.attempts[-1] = {**new.attempts[-1], "held_width": float(self._g.Eval(context)[0])}
             new.mode, new.t_mode = "lift", t
         elif s.mode == "open" and dt >= self._open_time:
             new.mode, new.t_mode = "home", t
