@@ -470,11 +470,17 @@ def cmd_pick(args) -> int:
                 "finished",
             ],
         )
+        + "".join(f"\nnot in the bin: object {i} ({sc_obj}) {w} at {p}" for i, (w, p), sc_obj in _left(run))
         + (f"\nreplay: {args.record}" if args.record else ""),
     )
     if args.meshcat and sys.stdin.isatty():
         input("Meshcat is serving the replay; press Enter to quit. ")
     return 0
+
+
+def _left(run):
+    """(id, (where, position), shape) of every object the run left outside the bin."""
+    return [(i, wp, run.shapes[i] if run.shapes else "?") for i, wp in sorted(run.left.items())]
 
 
 def cmd_gripper(args) -> int:

@@ -171,6 +171,22 @@ def test_end_to_end_pick_clears_a_small_table():
     s = run.summary()
     assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
     assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
+    assert run.left == {} and s["left_in_view"] == s["left_out_of_view"] == s["left_off_table"] == 0
+
+
+def test_objects_outside_the_bin_are_located():
+    from mog_drake.systems.pick import where_left
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=3))
+    d, h = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    pc = h.plant.GetMyMutableContextFromRoot(ctx)
+    from pydrake.math import RigidTransform
+
+    h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([0.0, 0.45, 0.02]))  # table, not in view
+    h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.0, -0.5]))  # on the floor
+    left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
+    assert [left[i][0] for i in range(3)] == ["in view", "out of view", "off the table"]
 
 
 def test_committed_scenario_file_matches_the_defaults():

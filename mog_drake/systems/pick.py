@@ -104,6 +104,11 @@ class PickRun:
     sim_time: float = 0.0
     wall_time: float = 0.0
     finished: str = ""
+    # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
+    # where "in view" (on the table, inside the perceived region), "out of view" (on the
+    # table, outside it) or "off the table".
+    left: dict = field(default_factory=dict)
+    shapes: list[str] = field(default_factory=list)  # the true scene's shape of each object id
 
     def summary(self) -> dict:
         n = len(self.attempts)
@@ -123,6 +128,9 @@ class PickRun:
             "planning_time_s": planning,
             "wall_time_s": self.wall_time,
             "finished": self.finished,
+            "left_in_view": sum(w == "in view" for w, _ in self.left.values()),
+            "left_out_of_view": sum(w == "out of view" for w, _ in self.left.values()),
+            "left_off_table": sum(w == "off the table" for w, _ in self.left.values()),
         }
 
 
@@ -135,6 +143,24 @@ def objects_in_bin(plant, plant_context, bodies, scenario: Scenario) -> list[int
         p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
         if abs(p[0] - cx) <= hx and abs(p[1] - cy) <= hy and p[2] < scenario.bin.depth + 0.05:
             out.append(i)
+    return out
+
+
+def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:
+    """Scoring only (ground truth): where each object outside the bin is."""
+    x0, x1, y0, y1 = scenario.table
+    out = {}
+    for i, b in bodies.items():
+        if i in in_bin:
+            continue
+        p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
+        if p[2] < -0.02:
+            where = "off the table"
+        elif x0 <= p[0] <= x1 and y0 <= p[1] <= y1:
+            where = "in view"
+        else:
+            where = "out of view"
+        out[int(i)] = (where, [round(float(v), 3) for v in p])
     return out
 
 
@@ -189,7 +215,11 @@ def run_pick(
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
-    run.in_bin = len(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)) if scored else 0
+    if scored:
+        in_bin = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
+        run.in_bin = len(in_bin)
+        run.left = where_left(handles.plant, plant_ctx, handles.bodies, scenario, in_bin)
+        run.shapes = [o.shape for o in handles.scene.objects]
     run.sim_time = ctx.get_time()
     run.wall_time = time.perf_counter() - t0
     return run
