@@ -114,6 +114,16 @@ class CameraSpec:
     def info(self) -> CameraInfo:
         return CameraInfo(self.width, self.height, np.radians(self.fov_y_deg))
 
+    def sees(self, p_W) -> bool:
+        """Whether the world point projects inside the image (in front of the camera)."""
+        p_C = self.X_WC().inverse() @ np.asarray(p_W, dtype=float)
+        if p_C[2] <= self.depth_min:
+            return False
+        k = self.info()
+        u = k.focal_x() * p_C[0] / p_C[2] + k.center_x()
+        v = k.focal_y() * p_C[1] / p_C[2] + k.center_y()
+        return bool(0 <= u < self.width and 0 <= v < self.height)
+
 
 @dataclass
 class PlannerSpec:

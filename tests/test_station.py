@@ -185,6 +185,8 @@ def test_objects_outside_the_bin_are_located():
 
     h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([0.0, 0.45, 0.02]))  # table, not in view
     h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.0, -0.5]))  # on the floor
+    assert sc.camera.sees([0.0, 0.0, 0.0]) and sc.camera.sees([0.25, 0.18, 0.0])
+    assert not sc.camera.sees([0.0, 0.25, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
     left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
     assert [left[i][0] for i in range(3)] == ["in view", "out of view", "off the table"]
 

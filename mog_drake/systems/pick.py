@@ -156,7 +156,7 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
         p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
         if p[2] < -0.02:
             where = "off the table"
-        elif x0 <= p[0] <= x1 and y0 <= p[1] <= y1:
+        elif x0 <= p[0] <= x1 and y0 <= p[1] <= y1 and scenario.camera.sees(p):
             where = "in view"
         else:
             where = "out of view"
