@@ -432,7 +432,9 @@ def cmd_pick(args) -> int:
     def line(k, a):
         if not args.json:
             print(
-                f"attempt {k:3d}  group {a['group']}  picked {a['picked']}  in bin {a['in_bin']}  "
+                f"attempt {k:3d}  group {a['group']}  "
+                + (f"lifted {len(a['carried'])}  " if a.get("carried") is not None else "")
+                + f"picked {a['picked']}  in bin {a['in_bin']}  "
                 f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)",
                 flush=True,
             )

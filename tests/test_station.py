@@ -171,6 +171,7 @@ def test_end_to_end_pick_clears_a_small_table():
     s = run.summary()
     assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
     assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
+    assert all(a["carried"] is not None and len(a["carried"]) >= a["picked"] for a in run.attempts)
     assert run.left == {} and s["left_in_view"] == s["left_out_of_view"] == s["left_off_table"] == 0
 
 

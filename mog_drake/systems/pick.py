@@ -193,18 +193,29 @@ def run_pick(
         meshcat.StartRecording()
     done_attempts = 0
     in_bin_before = 0
+    carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
         sim.AdvanceTo(ctx.get_time() + 0.25)
         s = controller.state(ctrl_ctx)
+        if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
+            old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario))
+            carried[len(s.attempts) - 1] = [
+                int(i)
+                for i, b in handles.bodies.items()
+                if i not in old and handles.plant.EvalBodyPoseInWorld(plant_ctx, b).translation()[2] > 0.08
+            ]
         while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
             a = dict(s.attempts[done_attempts])
             if scored:
                 now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
                 a["picked"] = len(now) - in_bin_before
                 a["in_bin"] = len(now)
+                # Lifted from the table (seen in the air as the arm left for the bin); those
+                # not in the bin at the end fell on the way.
+                a["carried"] = carried.get(done_attempts)
                 in_bin_before = len(now)
             else:
-                a["picked"] = a["in_bin"] = None
+                a["picked"] = a["in_bin"] = a["carried"] = None
             run.attempts.append(a)
             done_attempts += 1
             if on_attempt:
