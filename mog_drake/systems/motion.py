@@ -32,6 +32,9 @@ class MotionConfig:
     finger_height: float = 0.040
     finger_clearance: float = 0.002  # fingertips above the table at the grasp
     levels: int = 5  # IK points on a vertical line
+    # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
+    # joint speed and acceleration limits: objects carried by friction stay put.
+    carry_scale: float = 0.5
 
 
 class ArmMotion:
@@ -99,9 +102,9 @@ class ArmMotion:
             qs.append(q)
         return np.array(qs)
 
-    def timed(self, waypoints) -> PathParameterizedTrajectory:
+    def timed(self, waypoints, scale: float = 1.0) -> PathParameterizedTrajectory:
         """A trajectory through joint waypoints (K, 6), at rest at both ends, time-optimal
-        under the joint velocity and acceleration limits (TOPP-RA)."""
+        under the joint velocity and acceleration limits times ``scale`` (TOPP-RA)."""
         W = np.asarray(waypoints, float)
         if len(W) == 1:
             W = np.vstack([W, W])
@@ -121,8 +124,9 @@ class ArmMotion:
         )
         grid = Toppra.CalcGridPoints(path, CalcGridPointsOptions())
         toppra = Toppra(path, self.plant, grid)
-        toppra.AddJointVelocityLimit(-self.vmax * np.ones(6), self.vmax * np.ones(6))
-        toppra.AddJointAccelerationLimit(-self.amax * np.ones(6), self.amax * np.ones(6))
+        vmax, amax = scale * self.vmax, scale * self.amax
+        toppra.AddJointVelocityLimit(-vmax * np.ones(6), vmax * np.ones(6))
+        toppra.AddJointAccelerationLimit(-amax * np.ones(6), amax * np.ones(6))
         s_traj = toppra.SolvePathParameterization()
         if s_traj is None:
             raise MogError("TOPP-RA found no time parameterisation for the arm path")
@@ -155,8 +159,8 @@ class ArmMotion:
         q_bin = self.ik([bin_xy[0], bin_xy[1], z_bin], yaw, up[-1])
         return {
             "approach": self.timed([q_start, q_above, *down[1:]]),
-            "lift": self.timed(up),
-            "to_bin": self.timed([up[-1], q_bin]),
+            "lift": self.timed(up, cfg.carry_scale),
+            "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
             "home": self.timed([q_bin, q_start]),
             "yaw": yaw,
         }
