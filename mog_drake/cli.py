@@ -433,6 +433,7 @@ def cmd_pick(args) -> int:
         if not args.json:
             print(
                 f"attempt {k:3d}  group {a['group']}  "
+                + (f"expected {len(a['expected'])}  " if a.get("expected") else "")
                 + (f"lifted {len(a['carried'])}  " if a.get("carried") is not None else "")
                 + f"picked {a['picked']}  in bin {a['in_bin']}  "
                 f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)",

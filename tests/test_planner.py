@@ -179,7 +179,7 @@ def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
 
     v = LiftsTwoOnce()
     d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)))
-    assert d.status == "grasp" and d.partial and d.group == (0, 1)
+    assert d.status == "grasp" and d.partial and d.group == d.expected == (0, 1)
     assert set(v.asked) == {(0, 1, 2)} and d.groups_tried == 1
     np.testing.assert_allclose(d.grasp, d.plans[0].candidate_grasps[d.plans[0].tested_indices[1]])
 

@@ -34,6 +34,7 @@ class PickDecision:
     group: tuple[int, ...] = ()
     groups_tried: int = 0
     partial: bool = False  # the grasp lifted part of a larger group it was planned for
+    expected: tuple[int, ...] = ()  # objects the physics check lifted with this grasp
     physics_checks: int = 0
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
@@ -45,6 +46,7 @@ class PickDecision:
             "group": list(self.group),
             "groups_tried": self.groups_tried,
             "partial": self.partial,
+            "expected": list(self.expected),
             "physics_checks": self.physics_checks,
             "planning_time": self.planning_time,
         }
@@ -97,11 +99,12 @@ def next_pick(
         decision.physics_checks += res.tested
         if res.found:
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+            decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
             break
         if res.best_lift is not None and (best is None or len(res.best_lift[1]) > len(best[1])):
             best = res.best_lift
     if decision.status != "grasp" and partial_lifts and best is not None:
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
-        decision.partial = True
+        decision.partial, decision.expected = True, tuple(best[1])
     decision.planning_time = time.perf_counter() - t0
     return decision

@@ -211,6 +211,7 @@ class ControllerSystem(LeafSystem):
                                 "planning_time": dec.planning_time,
                                 "objects_seen": d.objects_seen,
                                 "physics_checks": dec.physics_checks,
+                                "expected": list(dec.expected),
                             }
                         )
         elif s.mode in self.MOTIONS:
