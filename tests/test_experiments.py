@@ -61,7 +61,7 @@ def test_tiny_conditions_sweep_end_to_end(tmp_path):
         "candidates_per_scene",
     ):
         assert k in row
-    assert row["negatives"] + row["positives"] == results[0]["n_candidates"]
+    assert row["negatives"] + row["positives"] + row["physics_errors"] == results[0]["n_candidates"]
     assert summary["rows"][-1]["class"] == "all"
     # Resuming an identical sweep recomputes nothing and gives the same summary.
     again, _ = conditions.run(
@@ -164,3 +164,21 @@ def test_a_false_negative_is_replayed_and_explained():
     assert out["replayed_success"]
     assert out["h0_mm"] < out["h_fmin_mm"] and out["final_opening_mm"] < out["h_fmin_mm"]
     assert out["explanation"].startswith("held by friction")
+
+
+def test_a_physics_fault_is_neither_negative_nor_positive():
+    fake = [
+        {
+            "class": 3,
+            "scene_seed": 1,
+            "n_candidates": 3,
+            "candidates": [
+                [0.0, 0.0, 0.0, True, True, False, "CPU budget of 10 s exceeded at t = 0.3 s"],
+                [0.0, 0.0, 0.5, False, True, False, "object 2 left the table (at [0.6, 0.0, 0.0])"],
+                [0.0, 0.0, 1.0, True, True, True, ""],
+            ],
+        }
+    ]
+    row = conditions.summarize(fake)["rows"][0]
+    assert (row["negatives"], row["positives"], row["physics_errors"], row["ejected"]) == (1, 1, 1, 1)
+    assert row["tn_diameter_pct"] == 100.0

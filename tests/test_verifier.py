@@ -79,7 +79,7 @@ def test_identical_inputs_identical_outcomes():
     [
         (VerifierConfig(contact=ContactConfig(time_step=0.1)), "left the table"),  # absurd step
         (VerifierConfig(contact=ContactConfig(hydroelastic_modulus=1e3)), "left the table"),
-        (VerifierConfig(wall_budget=1e-4), "wall-time budget"),
+        (VerifierConfig(cpu_budget=1e-4), "CPU budget"),
     ],
 )
 def test_broken_settings_report_an_error_not_a_success(config, msg):

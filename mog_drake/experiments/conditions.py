@@ -97,12 +97,20 @@ COLUMNS = [
     "tn_either_pct",
     "tn_both_pct",
     "false_negatives",
+    "ejected",
     "physics_errors",
 ]
 
 # Counters per class: candidates, negatives, negatives rejected by area / by diameter / by
-# either / by both, results with a physics error, false negatives.
-_N = 8
+# either / by both, results with a physics fault, false negatives, results where an object was
+# squeezed off the table (a failure, not a fault).
+_N = 9
+
+
+def is_fault(error: str) -> bool:
+    """A check that did not run as intended (CPU budget, non-finite state, solver failure), as
+    opposed to one whose objects were squeezed off the table, which is an outcome."""
+    return bool(error) and not all("left the table" in part for part in error.split("; "))
 
 
 def summarize(results: list[dict]) -> dict:
@@ -117,7 +125,10 @@ def summarize(results: list[dict]) -> dict:
         for r in by_class[c]:
             for x, y, th, d_ok, a_ok, success, err in r["candidates"]:
                 k[0] += 1
-                k[6] += bool(err)
+                if is_fault(err):  # no ground truth: neither a negative nor a positive
+                    k[6] += 1
+                    continue
+                k[8] += bool(err)
                 if not success:
                     k[1] += 1
                     k[2] += not a_ok
@@ -206,12 +217,13 @@ def _row(label: str, k: np.ndarray, n_cands: list[int]) -> dict:
         "candidates_per_scene": cm,
         "candidates_ci": ch,
         "negatives": int(k[1]),
-        "positives": int(k[0] - k[1]),
+        "positives": int(k[0] - k[1] - k[6]),
         "tn_area_pct": 100 * k[2] / neg,
         "tn_diameter_pct": 100 * k[3] / neg,
         "tn_either_pct": 100 * k[4] / neg,
         "tn_both_pct": 100 * k[5] / neg,
         "false_negatives": int(k[7]),
+        "ejected": int(k[8]),
         "physics_errors": int(k[6]),
     }
 
