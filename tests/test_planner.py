@@ -186,3 +186,18 @@ def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     v = LiftsTwoOnce()
     d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), partial_lifts=False)
     assert d.status == "grasp" and not d.partial and len(d.group) == 1
+
+
+def test_an_incomplete_check_is_no_partial_lift():
+    """A check stopped early saw objects in the air, not objects held: not a verified grasp."""
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene([("thin_bar", -0.012, 0.0, math.pi / 2), ("thin_bar", 0.0, 0.0, math.pi / 2)])
+
+    class StopsEarly(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            return GraspResult(False, lifted=list(group), complete=False)
+
+    d = next_pick(scene, GraspPlanner(StopsEarly(), PlannerConfig("gp", max_physics=2)))
+    assert d.status == "no_grasp" and not d.partial

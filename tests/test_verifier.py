@@ -127,3 +127,16 @@ def test_check_simulate_cli(tmp_path, capsys):
     # animation must all be there.
     raw = b"".join(base64.b64decode(b) for b in re.findall(r"octet-binary;base64,([A-Za-z0-9+/=]+)", text))
     assert b"object_0" in raw and b"left_finger" in raw and b"set_animation" in raw
+
+
+def test_early_exit_is_marked_and_can_wait_for_the_whole_group():
+    """Group: a bar between the jaws and a cube out of their reach. The default check stops
+    once the cube is certainly left (incomplete: its `lifted` proves nothing); with
+    early_exit_all it runs to the end and reports the bar as held."""
+    scene = make_scene(
+        [("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.06, 0.0)], group=(0, 1)
+    )
+    quick = DrakeVerifier().check(scene, (0, 1), [0.0, 0.0, 0.0])
+    assert not quick.success and not quick.complete and quick.sim_time < 1.0
+    full = DrakeVerifier(VerifierConfig(early_exit_all=True)).check(scene, (0, 1), [0.0, 0.0, 0.0])
+    assert not full.success and full.complete and full.lifted == [0] and full.sim_time > 1.1

@@ -141,7 +141,8 @@ class GraspPlanner:
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
-            if not last.error and last.lifted and (best_lift is None or len(last.lifted) > len(best_lift[1])):
+            held = last.complete and not last.error and last.lifted
+            if held and (best_lift is None or len(last.lifted) > len(best_lift[1])):
                 best_lift = (cands[i].copy(), sorted(int(k) for k in last.lifted))
             if last.success:
                 grasp = cands[i].copy()

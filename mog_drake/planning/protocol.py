@@ -25,6 +25,9 @@ class GraspResult:
     wall_time: float = 0.0  # seconds of computation (includes a plant build if one was needed)
     built: bool = False  # whether this check had to build a plant
     error: str = ""
+    # False when the check stopped early because its verdict was already certain: ``lifted``
+    # is then only what was in the air at that moment, not objects held to the end.
+    complete: bool = True
 
     def to_dict(self) -> dict:
         d = asdict(self)

@@ -50,6 +50,10 @@ class VerifierConfig:
     # bottom is above the top of a group object still resting near the table, that object
     # can never be lifted (the gripper only rises from then on). Same verdict, less time.
     early_exit: bool = True
+    # With early_exit: stop when any group object is certainly left (the verdict is then
+    # known), or, with early_exit_all, only once every group object is, so that a check that
+    # lifts part of the group runs to the end and reports which objects it held.
+    early_exit_all: bool = False
 
     def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
         t_close0 = self.settle_time
@@ -246,10 +250,14 @@ class DrakeVerifier:
                 return EventStatus.Failed(None, status["error"])
             if cfg.early_exit and t > timeline["lift0"]:
                 finger_bottom = z_joint.get_translation(ctx) - finger_h
-                for i, body, top in group_bodies:
-                    if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top:
-                        status["early"] = f"object {i} left on the table"
-                        return EventStatus.ReachedTermination(None, status["early"])
+                left = [
+                    i
+                    for i, body, top in group_bodies
+                    if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top
+                ]
+                if left and (not cfg.early_exit_all or len(left) == len(group_bodies)):
+                    status["early"] = f"object(s) {left} left on the table"
+                    return EventStatus.ReachedTermination(None, status["early"])
             return EventStatus.Succeeded()
 
         sim.simulator.set_monitor(monitor)
@@ -294,4 +302,4 @@ class DrakeVerifier:
         if errors:
             return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors))
         success = not early and all(int(i) in lifted for i in group)
-        return GraspResult(success, lifted, float(opening), t, wall)
+        return GraspResult(success, lifted, float(opening), t, wall, complete=not early)

@@ -28,7 +28,12 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     perception = builder.AddNamedSystem(
         "perception", PerceptionSystem(scenario.camera, scenario.table, library)
     )
-    vcfg = VerifierConfig(contact=scenario.planner_contact, physics=scenario.gripper)
+    # With partial lifts, a check that holds part of the group runs to the end to say so.
+    vcfg = VerifierConfig(
+        contact=scenario.planner_contact,
+        physics=scenario.gripper,
+        early_exit_all=scenario.planner.partial_lifts,
+    )
     planner = GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
