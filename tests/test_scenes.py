@@ -117,3 +117,25 @@ def test_bad_user_shapes_are_refused_by_name(tmp_path, spec, msg):
     with pytest.raises(MogError, match=msg) as e:
         ShapeLibrary.load(f)
     assert "blob" in str(e.value)
+
+
+def test_overlapping_fits_are_pushed_apart():
+    import shapely
+
+    from mog_drake.perception import separate_overlaps
+    from mog_drake.scenes import SceneObject, default_library
+
+    lib = default_library()
+    # A thin bar 1 mm into a thick bar lying beside it, and a far cube left alone.
+    objs = [
+        SceneObject("thick_bar", 0.0, 0.0, 0.0),
+        SceneObject("thin_bar", 0.0, 0.0085, 0.0),
+        SceneObject("small_yellow_cube", 0.1, 0.1, 0.0),
+    ]
+    out, moved = separate_overlaps(objs, lib)
+    assert moved >= 1 and out[2] == objs[2]
+    polys = [shapely.Polygon(lib[o.shape].vertices @ [[1, 0], [0, 1]] + [o.x, o.y]) for o in out]
+    assert polys[0].intersection(polys[1]).area < 1e-10
+    # Each moved about half the 1 mm penetration, along y only.
+    assert out[0].y == pytest.approx(-0.0006, abs=2e-4) and out[1].y == pytest.approx(0.0091, abs=2e-4)
+    assert out[0].x == out[1].x == 0.0
