@@ -542,6 +542,11 @@ def cmd_bench(args) -> int:
 
         rows = bench_verifier(args.scenes, args.seed)
         _emit(args, {"verifier": rows}, format_table(rows))
+    elif args.what == "perception":
+        from mog_drake.experiments.bench import bench_perception
+
+        rows = bench_perception(args.scenes, args.seed, args.toppled)
+        _emit(args, {"perception": rows}, format_table(rows))
     elif args.what == "agreement":
         from mog_drake.experiments.bench import bench_agreement
         from mog_drake.progress import Progress
@@ -767,8 +772,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_gripper)
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
-    sp.add_argument("what", choices=["geometry", "verifier", "agreement"])
-    sp.add_argument("--scenes", type=int, default=20, help="scenes per class (geometry, verifier)")
+    sp.add_argument("what", choices=["geometry", "verifier", "agreement", "perception"])
+    sp.add_argument(
+        "--scenes", type=int, default=20, help="scenes per class (geometry, verifier); tables (perception)"
+    )
+    sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")

@@ -7,6 +7,7 @@ from functools import partial
 
 import numpy as np
 
+from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.scenes import row_scene
 
@@ -177,3 +178,65 @@ def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.00
         "results_with_error": errors,
         "disagreements": disagreements,
     }
+
+
+def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[dict]:
+    """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
+    objects found, missed and extra, median and worst position (mm) and yaw error (deg, modulo
+    the shape's symmetry), and time per image. ``toppled`` bars per table are laid on their
+    side before rendering (the pose a knocked-over bar takes)."""
+    from mog_drake.perception import Perceiver, pose_errors
+    from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
+    from mog_drake.station import MakeStation, Scenario, SceneSpec
+
+    rows = []
+    for k in range(seed, seed + tables):
+        scene = cluttered_scene(np.random.default_rng(k))
+        laid = 0
+        for i, o in enumerate(scene.objects):
+            if laid >= toppled or o.shape not in ("thin_bar", "thick_bar"):
+                continue
+            objs = list(scene.objects)
+            objs[i] = SceneObject(f"{o.shape}:on_side", o.x, o.y, o.theta)
+            try:  # a toppled bar's wider footprint must not overlap a neighbour
+                scene = Scene(objs, default_library(), table=scene.table).validate()
+                laid += 1
+            except MogError:
+                pass
+        sc = Scenario(scene=SceneSpec(kind="cluttered", seed=k))
+        d, h = MakeStation(sc, scene)
+        ctx = d.CreateDefaultContext()
+        d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+        d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+        rgb = d.GetOutputPort("camera.rgb_image").Eval(ctx).data
+        depth = d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
+        info = sc.camera.info()
+        t = time.perf_counter()
+        seen = Perceiver(table=sc.table).perceive(
+            rgb,
+            depth,
+            sc.camera.X_WC().GetAsMatrix4(),
+            (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+        )
+        dt = time.perf_counter() - t
+        errs = pose_errors(seen, h.scene)
+        found = [e for e in errs if e["object"] is not None and e["position"] is not None]
+        pos = 1e3 * np.array([e["position"] for e in found])
+        yaw = np.degrees([e["yaw"] for e in found])
+        rows.append(
+            {
+                "table_seed": k,
+                "objects": len(h.scene),
+                "toppled": laid,
+                "found": len(found),
+                "missed": sum(e["object"] is not None and e["position"] is None for e in errs),
+                "extra": sum(bool(e.get("extra")) for e in errs),
+                "unrecognised": seen.meta["unrecognised_blobs"],
+                "pos_median_mm": float(np.median(pos)) if len(pos) else float("nan"),
+                "pos_max_mm": float(pos.max()) if len(pos) else float("nan"),
+                "yaw_median_deg": float(np.median(yaw)) if len(yaw) else float("nan"),
+                "yaw_max_deg": float(yaw.max()) if len(yaw) else float("nan"),
+                "time_s": dt,
+            }
+        )
+    return rows
