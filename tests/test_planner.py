@@ -201,3 +201,42 @@ def test_an_incomplete_check_is_no_partial_lift():
 
     d = next_pick(scene, GraspPlanner(StopsEarly(), PlannerConfig("gp", max_physics=2)))
     assert d.status == "no_grasp" and not d.partial
+
+
+def test_avoided_grasps_are_not_tried_again(scene):
+    cands, ev = _figures(scene)
+    v = FakeVerifier()
+    first = GraspPlanner(v, PlannerConfig("gp", max_physics=1)).plan(scene, scene.group)
+    tried = first.candidate_grasps[first.tested_indices[0]]
+    v2 = FakeVerifier()
+    # The same grasp, turned by pi (the jaws are symmetric) and nudged 1 mm, is still avoided.
+    avoid = [tried + [0.001, 0.0, math.pi]]
+    again = GraspPlanner(v2, PlannerConfig("gp", max_physics=1)).plan(scene, scene.group, avoid=avoid)
+    assert again.tested == 1 and not np.allclose(v2.asked[0], tried)
+
+
+def test_planner_system_does_not_repeat_its_last_grasp():
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.systems.leaf_systems import Perceived, PlannerSystem
+
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.15, 0.15, 0.0)])
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(np.asarray(grasp).copy())
+            return GraspResult(True, lifted=list(group))
+
+    system = PlannerSystem(GraspPlanner(LiftsAnything(), PlannerConfig("gp")))
+    ctx = system.CreateDefaultContext()
+    port = system.GetInputPort("scene")
+    port.FixValue(ctx, AbstractValue.Make(Perceived(1, scene)))
+    sim = Simulator(system, ctx)
+    sim.AdvanceTo(0.015)
+    first = system.GetOutputPort("decision").Eval(ctx)
+    port.FixValue(ctx, AbstractValue.Make(Perceived(2, scene)))  # the world did not change
+    sim.AdvanceTo(0.025)
+    second = system.GetOutputPort("decision").Eval(ctx)
+    assert first.counter == 1 and second.counter == 2 and len(second.recent) == 2
+    assert not np.allclose(first.decision.grasp, second.decision.grasp)

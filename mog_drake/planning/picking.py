@@ -59,6 +59,7 @@ def next_pick(
     rng: np.random.Generator | None = None,
     group_radius: float = DEFAULT_GROUP_RADIUS,
     partial_lifts: bool = True,
+    avoid=(),
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -69,7 +70,10 @@ def next_pick(
     partial_lifts (mog only; an extension of Alg. 1): a candidate that the physics check saw
     lift only k objects of a larger group is still a verified grasp of those k. Once every
     group left to try has at most k objects, that grasp is taken instead of planning them, and
-    it is taken rather than giving up when no group succeeds."""
+    it is taken rather than giving up when no group succeeds.
+
+    avoid: grasps not to try again (the robot's last few), so that a grasp the physics check
+    trusts but the world keeps failing is not repeated attempt after attempt."""
     if mode not in MODES:
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
     t0 = time.perf_counter()
@@ -93,7 +97,7 @@ def next_pick(
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
-        res = planner.plan(scene, group, rng=rng)
+        res = planner.plan(scene, group, rng=rng, avoid=avoid)
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested

@@ -95,8 +95,10 @@ class GraspPlanner:
         self.gripper = gripper or GripperGeometry()
 
     def plan(
-        self, scene, group, rng: np.random.Generator | None = None, method: str | None = None
+        self, scene, group, rng: np.random.Generator | None = None, method: str | None = None, avoid=()
     ) -> PlanResult:
+        """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
+        (modulo pi: the jaws are symmetric) of one are skipped."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -133,6 +135,12 @@ class GraspPlanner:
             t = time.perf_counter()
             order = order[passed[order]]  # GraspFailure(): drop candidates violating a condition
             times["filter"] += time.perf_counter() - t
+        if len(avoid) and len(cands):
+            a = np.asarray(avoid, dtype=float).reshape(-1, 3)
+            near = np.linalg.norm(cands[:, None, :2] - a[None, :, :2], axis=2) < 0.005
+            dth = np.abs(np.remainder(cands[:, None, 2] - a[None, :, 2] + np.pi / 2, np.pi) - np.pi / 2)
+            repeat = np.any(near & (dth < 0.15), axis=1)
+            order = order[~repeat[order]]
 
         grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()

@@ -48,6 +48,7 @@ class Decision(_Immutable):
     counter: int = -1
     decision: PickDecision | None = None
     objects_seen: int = 0
+    recent: tuple = ()  # the last grasps issued, not to be repeated
 
 
 class PerceptionSystem(LeafSystem):
@@ -93,6 +94,8 @@ class PerceptionSystem(LeafSystem):
 class PlannerSystem(LeafSystem):
     """scene -> decision: Alg. 1 (mog) or the single-object baseline (sog) once per new scene."""
 
+    REMEMBER = 3  # grasps not to repeat: the last three issued
+
     def __init__(
         self, planner, mode: str = "mog", seed: int = 0, period: float = 0.01, partial_lifts: bool = True
     ):
@@ -116,8 +119,13 @@ class PlannerSystem(LeafSystem):
         cur = context.get_abstract_state(self._state).get_value()
         if p.scene is None or p.counter <= cur.counter:
             return
-        d = next_pick(p.scene, self._planner, self._mode, self._rng, partial_lifts=self._partial_lifts)
-        state.get_mutable_abstract_state(self._state).set_value(Decision(p.counter, d, len(p.scene)))
+        d = next_pick(
+            p.scene, self._planner, self._mode, self._rng, partial_lifts=self._partial_lifts, avoid=cur.recent
+        )
+        recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
+        state.get_mutable_abstract_state(self._state).set_value(
+            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :])
+        )
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
