@@ -312,6 +312,15 @@ def _parse_classes(text: str) -> list[int]:
 
 
 def cmd_eval(args) -> int:
+    if getattr(args, "summary_only", False):
+        from mog_drake.experiments.sweep import summary_only
+
+        with summary_only():
+            return _cmd_eval(args)
+    return _cmd_eval(args)
+
+
+def _cmd_eval(args) -> int:
     import os
 
     from mog_drake.experiments import figures
@@ -724,7 +733,9 @@ def build_parser() -> argparse.ArgumentParser:
             sp.add_argument(
                 "--max-physics", type=int, help="cap physics checks per plan (speed-ups become lower bounds)"
             )
-        sp.set_defaults(func=cmd_eval)
+        sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
+        sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
+    sp.set_defaults(func=cmd_eval)
     sp = ev.add_parser("picking", help="multi- vs single-object picking on cluttered tables (Table 1)")
     sp.add_argument("--scenes", type=int, default=20)
     sp.add_argument("--modes", default="mog,sog")

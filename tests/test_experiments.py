@@ -182,3 +182,13 @@ def test_a_physics_fault_is_neither_negative_nor_positive():
     row = conditions.summarize(fake)["rows"][0]
     assert (row["negatives"], row["positives"], row["physics_errors"], row["ejected"]) == (1, 1, 1, 1)
     assert row["tn_diameter_pct"] == 100.0
+
+
+def test_summary_only_runs_nothing(tmp_path):
+    from mog_drake.experiments.sweep import summary_only
+
+    with summary_only():
+        summary, results = conditions.run(
+            [2], 1, seed=3, out_dir=tmp_path, progress=False, n_positions=4, n_orientations=2
+        )
+    assert results == [] and not (tmp_path / "results.jsonl").read_text()

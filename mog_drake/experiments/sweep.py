@@ -7,6 +7,7 @@ in parallel processes on this machine; ``ray_address`` sends them to an existing
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from collections.abc import Callable, Iterable
@@ -49,6 +50,21 @@ def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes
     path.write_text(json.dumps(params, indent=2))
 
 
+_SUMMARY_ONLY = False
+
+
+@contextlib.contextmanager
+def summary_only():
+    """Inside this block sweeps run nothing: they return the results already written, so a
+    summary of a sweep still under way (or interrupted) can be printed."""
+    global _SUMMARY_ONLY
+    before, _SUMMARY_ONLY = _SUMMARY_ONLY, True
+    try:
+        yield
+    finally:
+        _SUMMARY_ONLY = before
+
+
 def run_sweep(
     tasks: list[dict],
     worker: Callable[[dict], dict],
@@ -64,7 +80,7 @@ def run_sweep(
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "results.jsonl"
     done = load_results(path)
-    todo = [t for t in tasks if t["key"] not in done]
+    todo = [] if _SUMMARY_ONLY else [t for t in tasks if t["key"] not in done]
     bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
     bar.update(len(tasks) - len(todo))
     try:
