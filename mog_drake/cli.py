@@ -734,8 +734,7 @@ def build_parser() -> argparse.ArgumentParser:
                 "--max-physics", type=int, help="cap physics checks per plan (speed-ups become lower bounds)"
             )
         sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
-        sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
-    sp.set_defaults(func=cmd_eval)
+        sp.set_defaults(func=cmd_eval)
     sp = ev.add_parser("picking", help="multi- vs single-object picking on cluttered tables (Table 1)")
     sp.add_argument("--scenes", type=int, default=20)
     sp.add_argument("--modes", default="mog,sog")
@@ -746,6 +745,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--jobs", type=int)
     sp.add_argument("--ray", metavar="ADDRESS")
     sp.add_argument("--json", action="store_true")
+    sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
     sp.set_defaults(func=cmd_eval)
 
     for name, helptext in (

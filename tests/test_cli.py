@@ -88,3 +88,22 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     assert code == 0 and png.stat().st_size > 10_000, err
     code, _, err = run(capsys, "bench", "agreement", "--candidates", "0")
     assert code == 2 and "--candidates must be at least 1" in err
+
+
+def test_every_eval_takes_summary_only(tmp_path, capsys):
+    from mog_drake.experiments import conditions
+
+    conditions.run([2], 1, seed=3, out_dir=tmp_path, progress=False, n_positions=4, n_orientations=2)
+    code, out, _ = run(
+        capsys,
+        *"eval conditions --classes 2 --scenes-per-class 2 --seed 3 --positions 4 --orientations 2".split(),
+        "--out",
+        str(tmp_path),
+        "--summary-only",
+        "--json",
+    )
+    assert code == 0 and json.loads(out)["rows"][0]["scenes"] == 1  # the second scene was not run
+    for e in ("planner", "picking"):
+        with pytest.raises(SystemExit) as ex:
+            main(["eval", e, "--help"])
+        assert ex.value.code == 0 and "--summary-only" in capsys.readouterr().out
