@@ -183,8 +183,14 @@ def explain_false_negatives(false_negatives: list[dict], verifier=None) -> list[
         ev = evaluate_grasps(scene.polygons(), scene.group, g[None])
         r = verifier.check(scene, scene.group, g)
         h0, h_fmin, opening = 1e3 * float(ev.h0[0]), 1e3 * ev.h_fmin, 1e3 * r.final_opening
+        thinnest = 1e3 * min(scene.shape(int(i)).d_fmin for i in scene.group)
         if not r.success:
             why = "not reproduced: the replay does not lift the group"
+        elif opening < thinnest - 0.5:
+            why = (
+                f"carried outside the jaws: they closed to {opening:.1f} mm, narrower than the thinnest "
+                f"group object ({thinnest:.1f} mm), so nothing was pinched between them"
+            )
         elif opening < h_fmin - 0.5:
             why = (
                 f"held by friction: the jaws stopped at {opening:.1f} mm, below h_fmin = {h_fmin:.1f} mm, "
