@@ -114,6 +114,11 @@ class CameraSpec:
     def info(self) -> CameraInfo:
         return CameraInfo(self.width, self.height, np.radians(self.fov_y_deg))
 
+    def intrinsics(self) -> tuple[float, float, float, float]:
+        """(fx, fy, cx, cy) in pixels."""
+        k = self.info()
+        return (k.focal_x(), k.focal_y(), k.center_x(), k.center_y())
+
     def sees(self, p_W) -> bool:
         """Whether the world point projects inside the image (in front of the camera)."""
         p_C = self.X_WC().inverse() @ np.asarray(p_W, dtype=float)
@@ -282,6 +287,16 @@ class StationHandles:
         self.bodies = bodies
         self.scene = scene
         self.gripper_joints = gripper_joints
+
+
+def render_still(scenario: Scenario, station, context=None):
+    """(rgb, depth) of a simulated station at rest: arm at its observe pose, gripper open."""
+    ctx = context if context is not None else station.CreateDefaultContext()
+    station.GetInputPort("ur5.position").FixValue(ctx, np.array(scenario.robot.home))
+    station.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    rgb = station.GetOutputPort("camera.rgb_image").Eval(ctx).data
+    depth = station.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
+    return rgb, depth
 
 
 def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: dict | None = None):

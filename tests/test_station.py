@@ -13,6 +13,7 @@ from mog_drake.station import (
     Scenario,
     SceneSpec,
     load_scenario,
+    render_still,
 )
 
 
@@ -52,17 +53,9 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     from mog_drake.perception import Perceiver, pose_errors
 
     sc, d, h = station33
-    ctx = d.CreateDefaultContext()
-    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
-    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
-    rgb = d.GetOutputPort("camera.rgb_image").Eval(ctx).data
-    depth = d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
-    info = sc.camera.info()
+    rgb, depth = render_still(sc, d)
     seen = Perceiver(table=sc.table).perceive(
-        rgb,
-        depth,
-        sc.camera.X_WC().GetAsMatrix4(),
-        (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+        rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
     )
     errs = pose_errors(seen, h.scene)
     assert not [e for e in errs if e.get("extra")]
@@ -239,15 +232,9 @@ def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
     truth.save(tmp_path / "toppled.yaml")
     sc = Scenario(scene=SceneSpec(file=str(tmp_path / "toppled.yaml")))
     d, h = MakeStation(sc)
-    ctx = d.CreateDefaultContext()
-    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
-    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
-    info = sc.camera.info()
+    rgb, depth = render_still(sc, d)
     seen = Perceiver(table=sc.table).perceive(
-        d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
-        d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0],
-        sc.camera.X_WC().GetAsMatrix4(),
-        (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+        rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
     )
     errs = pose_errors(seen, truth)
     assert sorted(o.shape for o in seen.objects) == sorted(o.shape for o in truth.objects)

@@ -187,7 +187,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
     side before rendering (the pose a knocked-over bar takes)."""
     from mog_drake.perception import Perceiver, pose_errors
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
-    from mog_drake.station import MakeStation, Scenario, SceneSpec
+    from mog_drake.station import MakeStation, Scenario, SceneSpec, render_still
 
     rows = []
     for k in range(seed, seed + tables):
@@ -205,18 +205,10 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
                 pass
         sc = Scenario(scene=SceneSpec(kind="cluttered", seed=k))
         d, h = MakeStation(sc, scene)
-        ctx = d.CreateDefaultContext()
-        d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
-        d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
-        rgb = d.GetOutputPort("camera.rgb_image").Eval(ctx).data
-        depth = d.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
-        info = sc.camera.info()
+        rgb, depth = render_still(sc, d)
         t = time.perf_counter()
         seen = Perceiver(table=sc.table).perceive(
-            rgb,
-            depth,
-            sc.camera.X_WC().GetAsMatrix4(),
-            (info.focal_x(), info.focal_y(), info.center_x(), info.center_y()),
+            rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
         )
         dt = time.perf_counter() - t
         errs = pose_errors(seen, h.scene)
