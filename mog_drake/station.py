@@ -124,9 +124,9 @@ class CameraSpec:
         p_C = self.X_WC().inverse() @ np.asarray(p_W, dtype=float)
         if p_C[2] <= self.depth_min:
             return False
-        k = self.info()
-        u = k.focal_x() * p_C[0] / p_C[2] + k.center_x()
-        v = k.focal_y() * p_C[1] / p_C[2] + k.center_y()
+        fx, fy, cx, cy = self.intrinsics()
+        u = fx * p_C[0] / p_C[2] + cx
+        v = fy * p_C[1] / p_C[2] + cy
         return bool(0 <= u < self.width and 0 <= v < self.height)
 
 
@@ -205,10 +205,9 @@ def check_planner_spec(spec: PlannerSpec) -> None:
     from mog_drake.planning.picking import MODES
     from mog_drake.planning.planner import METHODS
 
-    if spec.method not in METHODS or spec.method == "single":
-        raise MogError(
-            f"planner.method must be one of gp, rand-phys, rank-phys, rand-fil-phys, got {spec.method!r}"
-        )
+    methods = [m for m in METHODS if m != "single"]  # picking chooses its objects itself
+    if spec.method not in methods:
+        raise MogError(f"planner.method must be one of {', '.join(methods)}, got {spec.method!r}")
     if spec.mode not in MODES:
         raise MogError(f"planner.mode must be one of {', '.join(MODES)}, got {spec.mode!r}")
     if spec.max_physics_per_group < 0 or spec.n_positions < 1 or spec.n_orientations < 1:

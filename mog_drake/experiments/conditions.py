@@ -173,14 +173,15 @@ def explain_false_negatives(false_negatives: list[dict], verifier=None) -> list[
     out = []
     for fn in false_negatives:
         scene = row_scene(fn["class"], np.random.default_rng(fn["scene_seed"]))
+        polys = scene.polygons()
         # The exact candidate, not its rounded record: a grasp held by friction can be
         # decided by a 1e-7 change.
-        cands = gen_grasp_cands(scene.polygons(), scene.group, None, fn["n_positions"], fn["n_orientations"])
+        cands = gen_grasp_cands(polys, scene.group, None, fn["n_positions"], fn["n_orientations"])
         g = np.array(fn["grasp"], dtype=float)
         near = np.linalg.norm(cands - g, axis=1)
         if near.min() < 1e-5:
             g = cands[int(np.argmin(near))]
-        ev = evaluate_grasps(scene.polygons(), scene.group, g[None])
+        ev = evaluate_grasps(polys, scene.group, g[None])
         r = verifier.check(scene, scene.group, g)
         h0, h_fmin, opening = 1e3 * float(ev.h0[0]), 1e3 * ev.h_fmin, 1e3 * r.final_opening
         thinnest = 1e3 * min(scene.shape(int(i)).d_fmin for i in scene.group)

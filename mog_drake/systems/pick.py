@@ -110,8 +110,8 @@ class PickRun:
     wall_time: float = 0.0
     finished: str = ""
     # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
-    # where "in view" (on the table, inside the perceived region), "out of view" (on the
-    # table, outside it) or "off the table".
+    # where "in view" (on the table, inside the perceived region and the camera's image),
+    # "out of view" (on the table, outside them) or "off the table".
     left: dict = field(default_factory=dict)
     shapes: list[str] = field(default_factory=list)  # the true scene's shape of each object id
 
