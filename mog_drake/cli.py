@@ -556,6 +556,11 @@ def cmd_bench(args) -> int:
 
         rows = bench_perception(args.scenes, args.seed, args.toppled)
         _emit(args, {"perception": rows}, format_table(rows))
+    elif args.what == "station":
+        from mog_drake.experiments.bench import bench_station
+
+        rows = bench_station(args.seed)
+        _emit(args, {"station": rows}, format_table(rows))
     elif args.what == "agreement":
         from mog_drake.experiments.bench import bench_agreement
         from mog_drake.progress import Progress
@@ -783,7 +788,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_gripper)
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
-    sp.add_argument("what", choices=["geometry", "verifier", "agreement", "perception"])
+    sp.add_argument("what", choices=["geometry", "verifier", "agreement", "perception", "station"])
     sp.add_argument(
         "--scenes", type=int, default=20, help="scenes per class (geometry, verifier); tables (perception)"
     )

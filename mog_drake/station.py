@@ -216,21 +216,44 @@ def check_planner_spec(spec: PlannerSpec) -> None:
 
 class _DesiredState(LeafSystem):
     """Arm state [q, v] (12, the interpolated ur5.position) + gripper.position (1) -> desired
-    state (8 positions, 8 velocities) of the arm's and fingers' PD actuators."""
+    state (8 positions, 8 velocities) of the arm's and fingers' PD actuators.
 
-    def __init__(self, gripper: GripperGeometry):
+    The jaws go to a commanded opening at the gripper's speed setting (``speed``, m/s per
+    jaw), as the Robotiq does: a closing command moves the fingers' setpoint at that speed,
+    and the force limit stops them on contact. (A setpoint that jumped would slam the fingers
+    shut at whatever speed the force limit and damping allow, several times the real one.)"""
+
+    def __init__(self, gripper: GripperGeometry, speed: float, open_width: float, period: float = 0.01):
         super().__init__()
         self._t = gripper.plate_thickness
         self._max = gripper.opening - gripper.plate_thickness
+        self._rate = 2.0 * speed  # opening rate (m/s), both jaws
+        self._period = period
         self.DeclareVectorInputPort("arm_state", 12)
-        self.DeclareVectorInputPort("gripper.position", 1)
+        self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
+        # Setpoint opening w(t) = w_k + rate_k (t - t_k) between updates: [w_k, rate_k, t_k].
+        # Updated every ``period``, not every plant step: the ramp is exact in between.
+        w0 = min(max(open_width, 0.0), self._max)
+        self._w = self.DeclareDiscreteState([w0, 0.0, 0.0])
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._advance)
         self.DeclareVectorOutputPort("desired_state", 16, self._calc)
+
+    def _advance(self, context, discrete_state) -> None:
+        t = context.get_time()
+        w_k, rate, t_k = context.get_discrete_state(self._w).value()
+        w = w_k + rate * (t - t_k)
+        target = min(max(float(self._cmd.Eval(context)[0]), 0.0), self._max)
+        rate = min(max((target - w) / self._period, -self._rate), self._rate)
+        discrete_state.get_mutable_vector(self._w).SetFromVector([w, rate, t])
 
     def _calc(self, context, output) -> None:
         x = self.get_input_port(0).Eval(context)
-        w = float(np.clip(self.get_input_port(1).Eval(context)[0], 0.0, self._max))
-        half = w / 2 + self._t / 2
-        output.SetFromVector(np.concatenate([x[:6], [-half, half], x[6:], [0.0, 0.0]]))
+        w_k, rate, t_k = context.get_discrete_state(self._w).value()
+        half = (w_k + rate * (context.get_time() - t_k) + self._t) / 2
+        out = np.empty(16)
+        out[:6], out[6], out[7] = x[:6], -half, half
+        out[8:14], out[14], out[15] = x[6:], -rate / 2, rate / 2
+        output.SetFromVector(out)
 
 
 class _GripperState(LeafSystem):
@@ -369,7 +392,7 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
 
     # Commanded positions -> [q, v]: the velocity feed-forward a position-controlled arm has.
     interp = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(6, plant.time_step(), True))
-    cmd = builder.AddSystem(_DesiredState(gripper))
+    cmd = builder.AddSystem(_DesiredState(gripper, scenario.gripper.close_speed, gripper.w_g))
     builder.Connect(interp.get_output_port(), cmd.get_input_port(0))
     builder.Connect(cmd.get_output_port(), plant.get_desired_state_input_port(robot))
     builder.ExportInput(interp.get_input_port(), "ur5.position")

@@ -48,6 +48,27 @@ def test_arm_tracks_its_command_and_gripper_opens():
     assert d.GetOutputPort("gripper.state_measured").Eval(ctx)[0] == pytest.approx(0.04, abs=1e-3)
 
 
+def test_jaws_close_at_the_gripper_speed_not_at_once():
+    """A closing command moves the jaws at ``close_speed`` (as the Robotiq does), so pushing
+    in the station is as fast as in the grasp verifier."""
+    from pydrake.systems.analysis import Simulator
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=2))
+    d, _ = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.0])
+    sim = Simulator(d, ctx)
+    w0 = d.GetOutputPort("gripper.state_measured").Eval(ctx)[0]
+    sim.AdvanceTo(0.1)
+    w, wd = d.GetOutputPort("gripper.state_measured").Eval(ctx)
+    expected = w0 - 2 * sc.gripper.close_speed * 0.1
+    assert w == pytest.approx(expected, abs=3e-3)
+    assert wd == pytest.approx(-2 * sc.gripper.close_speed, rel=0.1)
+    sim.AdvanceTo(0.5)
+    assert d.GetOutputPort("gripper.state_measured").Eval(ctx)[0] == pytest.approx(0.0, abs=1e-3)
+
+
 def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     """Median position <= 2 mm and yaw <= 2 deg, every object found, no extra object."""
     from mog_drake.perception import Perceiver, pose_errors
@@ -185,6 +206,32 @@ def test_objects_outside_the_bin_are_located():
     assert not sc.camera.sees([0.0, 0.25, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
     left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
     assert [left[i][0] for i in range(3)] == ["in view", "out of view", "off the table"]
+
+
+def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.math import SpatialVelocity
+
+    from mog_drake.systems.pick import BinRetirement, objects_in_bin
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=3))
+    d, h = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    pc = h.plant.GetMyMutableContextFromRoot(ctx)
+    cx, cy = sc.bin.center
+    h.plant.SetFreeBodyPose(pc, h.bodies[0], RigidTransform([cx, cy, 0.0]))  # at rest in the bin
+    h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([cx + 0.05, cy, 0.05]))  # falling in
+    h.plant.SetFreeBodySpatialVelocity(pc, h.bodies[1], SpatialVelocity([0, 0, 0], [0, 0, -1.0]))
+    retire = BinRetirement(h.plant, h.bodies, sc)
+    retire.update(pc)
+    assert retire.retired == [0]
+    p0 = h.plant.EvalBodyPoseInWorld(pc, h.bodies[0]).translation()
+    assert np.linalg.norm(p0 - [cx, cy, 0.0]) > 10.0  # parked, out of everything's way
+    assert sorted(objects_in_bin(h.plant, pc, h.bodies, sc, retire.retired)) == [0, 1]
+    assert objects_in_bin(h.plant, pc, h.bodies, sc) == [1]  # without the record it is gone
+    # the object on the table stays where it is
+    p2 = h.plant.EvalBodyPoseInWorld(pc, h.bodies[2]).translation()
+    assert abs(p2[0]) < 0.3 and abs(p2[1]) < 0.3
 
 
 def test_committed_scenario_file_matches_the_defaults():

@@ -232,3 +232,54 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
             }
         )
     return rows
+
+
+def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
+    """CPU seconds per simulated second of the simulated station (arm still at its observe
+    pose, jaws open) with a whole isrr33 table in three states: every object on the table;
+    every object piled in the bin; and the pile retired (`BinRetirement`)."""
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.math import SpatialVelocity
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.station import MakeStation, Scenario, SceneSpec
+    from mog_drake.systems.pick import BinRetirement
+
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=seed))
+    d, h = MakeStation(sc)
+    sim = Simulator(d)
+    ctx = sim.get_mutable_context()
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    pc = h.plant.GetMyMutableContextFromRoot(ctx)
+    sim.Initialize()
+    sim.AdvanceTo(0.3)
+
+    def cost(**extra) -> dict:
+        t0, s0 = time.process_time(), ctx.get_time()
+        steps = 0
+        while ctx.get_time() < s0 + sim_seconds - 1e-9:
+            sim.AdvanceTo(min(ctx.get_time() + 0.25, s0 + sim_seconds))
+            if retire is not None:
+                retire.update(pc)
+            steps += 1
+        return {
+            **extra,
+            "objects": len(h.bodies),
+            "cpu_s_per_sim_s": (time.process_time() - t0) / sim_seconds,
+        }
+
+    retire = None
+    rows = [cost(state="on the table")]
+    rng = np.random.default_rng(seed)
+    cx, cy = sc.bin.center
+    for k, body in enumerate(h.bodies.values()):  # dropped in, one above the other
+        xy = [cx + rng.uniform(-0.08, 0.08), cy + rng.uniform(-0.05, 0.05)]
+        h.plant.SetFreeBodyPose(pc, body, RigidTransform([*xy, 0.02 + 0.035 * k]))
+        h.plant.SetFreeBodySpatialVelocity(pc, body, SpatialVelocity.Zero())
+    sim.AdvanceTo(ctx.get_time() + 3.0)  # the pile settles
+    rows.append(cost(state="piled in the bin"))
+    retire = BinRetirement(h.plant, h.bodies, sc)
+    retire.update(pc)
+    rows.append(cost(state="piled, then retired"))
+    return rows

@@ -5,6 +5,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.math import SpatialVelocity
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -139,16 +142,52 @@ class PickRun:
         }
 
 
-def objects_in_bin(plant, plant_context, bodies, scenario: Scenario) -> list[int]:
-    """Scoring only (ground truth): objects whose centre lies inside the bin's walls."""
+def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
+    """Scoring only (ground truth): objects whose centre lies inside the bin's walls, plus
+    those already retired from it (see `BinRetirement`)."""
     cx, cy = scenario.bin.center
     hx, hy = scenario.bin.inner[0] / 2, scenario.bin.inner[1] / 2
     out = []
     for i, b in bodies.items():
+        if i in retired:
+            out.append(i)
+            continue
         p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
         if abs(p[0] - cx) <= hx and abs(p[1] - cy) <= hy and p[2] < scenario.bin.depth + 0.05:
             out.append(i)
     return out
+
+
+class BinRetirement:
+    """Simulation speed, not physics: an object at rest in the bin is taken out of the scene.
+
+    A pile in the bin is the costliest contact in the station (33 prisms piled in the bin
+    simulate about 3x slower than the same 33 on the table, and 15x slower than none), and
+    nothing the robot does depends on it: the bin is outside the camera's view and the robot
+    only drops objects into it. Retired objects are parked far above the station, each in its
+    own spot, put back there with zero velocity at every check (they fall freely in between),
+    and counted in the bin for good. The pile is gone, so a later drop lands on the bin floor;
+    a Meshcat replay shows retired objects leave the bin."""
+
+    PARK = np.array([20.0, 20.0, 50.0])  # m, far from everything, above the table's half-space
+
+    def __init__(self, plant, bodies, scenario: Scenario, rest_speed: float = 0.02):
+        self.plant, self.bodies, self.scenario = plant, bodies, scenario
+        self.rest_speed = rest_speed
+        self.retired: list[int] = []
+
+    def update(self, plant_context) -> None:
+        plant = self.plant
+        for i in objects_in_bin(plant, plant_context, self.bodies, self.scenario, self.retired):
+            if i in self.retired:
+                continue
+            v = plant.EvalBodySpatialVelocityInWorld(plant_context, self.bodies[i])
+            if np.linalg.norm(v.translational()) < self.rest_speed:
+                self.retired.append(i)
+        for k, i in enumerate(self.retired):
+            X = RigidTransform(self.PARK + [0.3 * k, 0.0, 0.0])
+            plant.SetFreeBodyPose(plant_context, self.bodies[i], X)
+            plant.SetFreeBodySpatialVelocity(plant_context, self.bodies[i], SpatialVelocity.Zero())
 
 
 def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:
@@ -177,10 +216,12 @@ def run_pick(
     verifier=None,
     hardware_clients=None,
     realtime: bool = False,
+    retire_binned: bool = True,
 ) -> PickRun:
     """Runs the diagram until the table is clear, no grasp is found, or the time limit. In
     simulation each attempt is scored from ground truth (objects in the bin); on hardware there
-    is no ground truth and ``picked`` is None."""
+    is no ground truth and ``picked`` is None. ``retire_binned`` (simulation): objects at rest
+    in the bin leave the physics (`BinRetirement`), which keeps a long run fast."""
     t0 = time.perf_counter()
     diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
     handles = parts["handles"]
@@ -193,6 +234,8 @@ def run_pick(
     scored = handles.plant is not None
     plant_ctx = handles.plant.GetMyContextFromRoot(ctx) if scored else None
     run = PickRun(objects=len(handles.scene) if handles.scene is not None else 0)
+    retire = BinRetirement(handles.plant, handles.bodies, scenario) if scored and retire_binned else None
+    gone = retire.retired if retire else ()
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()
@@ -201,9 +244,11 @@ def run_pick(
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
         sim.AdvanceTo(ctx.get_time() + 0.25)
+        if retire:
+            retire.update(plant_ctx)
         s = controller.state(ctrl_ctx)
         if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
-            old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario))
+            old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone))
             carried[len(s.attempts) - 1] = [
                 int(i)
                 for i, b in handles.bodies.items()
@@ -212,7 +257,7 @@ def run_pick(
         while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
             a = dict(s.attempts[done_attempts])
             if scored:
-                now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
+                now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
                 a["picked"] = len(now) - in_bin_before
                 a["in_bin"] = len(now)
                 # Lifted from the table (seen in the air as the arm left for the bin); those
@@ -232,7 +277,7 @@ def run_pick(
         meshcat.StopRecording()
         meshcat.PublishRecording()
     if scored:
-        in_bin = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario)
+        in_bin = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
         run.in_bin = len(in_bin)
         run.left = where_left(handles.plant, plant_ctx, handles.bodies, scenario, in_bin)
         run.shapes = [o.shape for o in handles.scene.objects]
