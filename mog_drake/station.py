@@ -223,7 +223,7 @@ class _DesiredState(LeafSystem):
     and the force limit stops them on contact. (A setpoint that jumped would slam the fingers
     shut at whatever speed the force limit and damping allow, several times the real one.)"""
 
-    def __init__(self, gripper: GripperGeometry, speed: float, open_width: float, period: float = 0.01):
+    def __init__(self, gripper: GripperGeometry, speed: float, period: float = 0.01):
         super().__init__()
         self._t = gripper.plate_thickness
         self._max = gripper.opening - gripper.plate_thickness
@@ -233,8 +233,7 @@ class _DesiredState(LeafSystem):
         self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
         # Setpoint opening w(t) = w_k + rate_k (t - t_k) between updates: [w_k, rate_k, t_k].
         # Updated every ``period``, not every plant step: the ramp is exact in between.
-        w0 = min(max(open_width, 0.0), self._max)
-        self._w = self.DeclareDiscreteState([w0, 0.0, 0.0])
+        self._w = self.DeclareDiscreteState([self._max, 0.0, 0.0])  # starts open
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._advance)
         self.DeclareVectorOutputPort("desired_state", 16, self._calc)
 
@@ -311,11 +310,16 @@ class StationHandles:
         self.gripper_joints = gripper_joints
 
 
+def hold_still(scenario: Scenario, station, context) -> None:
+    """Fixes the station's inputs: arm at its observe pose, gripper open."""
+    station.GetInputPort("ur5.position").FixValue(context, np.array(scenario.robot.home))
+    station.GetInputPort("gripper.position").FixValue(context, [0.075])
+
+
 def render_still(scenario: Scenario, station, context=None):
     """(rgb, depth) of a simulated station at rest: arm at its observe pose, gripper open."""
     ctx = context if context is not None else station.CreateDefaultContext()
-    station.GetInputPort("ur5.position").FixValue(ctx, np.array(scenario.robot.home))
-    station.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    hold_still(scenario, station, ctx)
     rgb = station.GetOutputPort("camera.rgb_image").Eval(ctx).data
     depth = station.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
     return rgb, depth
@@ -392,7 +396,7 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
 
     # Commanded positions -> [q, v]: the velocity feed-forward a position-controlled arm has.
     interp = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(6, plant.time_step(), True))
-    cmd = builder.AddSystem(_DesiredState(gripper, scenario.gripper.close_speed, gripper.w_g))
+    cmd = builder.AddSystem(_DesiredState(gripper, scenario.gripper.close_speed))
     builder.Connect(interp.get_output_port(), cmd.get_input_port(0))
     builder.Connect(cmd.get_output_port(), plant.get_desired_state_input_port(robot))
     builder.ExportInput(interp.get_input_port(), "ur5.position")

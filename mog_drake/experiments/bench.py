@@ -242,27 +242,24 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     from pydrake.multibody.math import SpatialVelocity
     from pydrake.systems.analysis import Simulator
 
-    from mog_drake.station import MakeStation, Scenario, SceneSpec
+    from mog_drake.station import MakeStation, Scenario, SceneSpec, hold_still
     from mog_drake.systems.pick import BinRetirement
 
     sc = Scenario(scene=SceneSpec(kind="cluttered", seed=seed))
     d, h = MakeStation(sc)
     sim = Simulator(d)
     ctx = sim.get_mutable_context()
-    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
-    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    hold_still(sc, d, ctx)
     pc = h.plant.GetMyMutableContextFromRoot(ctx)
     sim.Initialize()
     sim.AdvanceTo(0.3)
 
     def cost(**extra) -> dict:
         t0, s0 = time.process_time(), ctx.get_time()
-        steps = 0
         while ctx.get_time() < s0 + sim_seconds - 1e-9:
             sim.AdvanceTo(min(ctx.get_time() + 0.25, s0 + sim_seconds))
             if retire is not None:
                 retire.update(pc)
-            steps += 1
         return {
             **extra,
             "objects": len(h.bodies),
