@@ -143,6 +143,9 @@ class PlannerSpec:
     # mog only, an extension of Alg. 1: a candidate seen to lift part of a larger group is a
     # verified grasp of that part, taken once no larger group is left to try.
     partial_lifts: bool = True
+    # Also try closing axes normal to the group's edges (first among equal-area candidates):
+    # grid orientations k pi / n alone pinch a lone thin bar across its corners.
+    edge_orientations: bool = True
 
 
 @dataclass

@@ -190,3 +190,35 @@ def test_candidates_cover_the_hull_and_rank_by_total_area():
     ev = evaluate_grasps(polys, scene.group, free)
     order = rank_grasp_cands(ev)
     assert np.all(np.diff(ev.area_total[order]) <= 0)
+
+
+def test_edge_orientations_come_first_and_meet_a_lone_bar_flat():
+    from conftest import make_scene
+
+    from mog_drake.geometry.candidates import edge_normal_angles
+
+    yaw = 0.3  # no multiple of pi / 7
+    scene = make_scene([("thin_bar", 0.0, 0.0, yaw)], group=[0])
+    polys = scene.polygons()
+    across, along = np.remainder(yaw + np.pi / 2, np.pi), yaw
+    # the long sides (50 mm) outweigh the ends (7 mm)
+    np.testing.assert_allclose(edge_normal_angles(polys, [0]), [across, along], atol=1e-9)
+    grid = candidate_grasps(polys, [0], 20, 7)
+    np.testing.assert_allclose(np.unique(grid[:, 2]), np.arange(7) * np.pi / 7)
+    ext = candidate_grasps(polys, [0], 20, 7, edge_orientations=True)
+    n_pos = len(grid) // 7
+    assert len(ext) == n_pos * 9
+    np.testing.assert_allclose(ext[: n_pos * 2, 2], np.tile([across, along], n_pos))
+    np.testing.assert_allclose(ext[n_pos * 2 :], grid)
+    # Closing along the bar keeps all of it inside S (75 x 20 mm), so that axis ranks first;
+    # the grid's nearest angle (pi / 7) keeps all of it too, and the tie goes to the edge.
+    for edges, want in ((False, np.pi / 7), (True, along)):
+        free = gen_grasp_cands(polys, [0], None, 20, 7, edge_orientations=edges)
+        ev = evaluate_grasps(polys, [0], free)
+        order = rank_grasp_cands(ev)
+        assert ev.area_total[order[0]] == pytest.approx(scene.shape(0).area)
+        assert free[order[0], 2] == pytest.approx(want)
+    # a grid angle that repeats an edge direction is left out
+    square = make_scene([("thin_bar", 0.0, 0.0, 0.0)], group=[0])
+    ext0 = candidate_grasps(square.polygons(), [0], 20, 7, edge_orientations=True)
+    assert len(ext0) == n_pos * 8 and np.sum(np.isclose(ext0[:, 2], 0.0)) == n_pos

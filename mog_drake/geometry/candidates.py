@@ -53,9 +53,47 @@ def hull_positions(hull: np.ndarray, n: int) -> np.ndarray:
     return best
 
 
-def candidate_grasps(polys: PolygonSet, group, n_positions: int = 70, n_orientations: int = 7) -> np.ndarray:
+def edge_normal_angles(polys: PolygonSet, group, tol: float = 1e-3) -> np.ndarray:
+    """The distinct directions, modulo pi and in [0, pi), of the group's edge normals: the
+    closing axes along which the jaws meet an edge of some object flat. Ordered by the
+    summed length of the edges each one is normal to, longest first (the broadest faces)."""
+    angles, lengths = [], []
+    for i in group:
+        v = polys.polygon(int(i))
+        d = np.roll(v, -1, axis=0) - v
+        angles.append(np.remainder(np.arctan2(d[:, 1], d[:, 0]) + np.pi / 2, np.pi))
+        lengths.append(np.hypot(d[:, 0], d[:, 1]))
+    angles, lengths = np.concatenate(angles), np.concatenate(lengths)
+    dirs: list[float] = []
+    weight: list[float] = []
+    for a, w in zip(angles, lengths):
+        for k, b in enumerate(dirs):
+            if _angle_gap(a, b) <= tol:
+                weight[k] += w
+                break
+        else:
+            dirs.append(float(a))
+            weight.append(float(w))
+    order = sorted(range(len(dirs)), key=lambda k: (-weight[k], dirs[k]))
+    return np.asarray([dirs[k] for k in order])
+
+
+def _angle_gap(a: float, b: float) -> float:
+    """Distance between two directions modulo pi."""
+    return abs((a - b + np.pi / 2) % np.pi - np.pi / 2)
+
+
+def candidate_grasps(
+    polys: PolygonSet, group, n_positions: int = 70, n_orientations: int = 7, edge_orientations: bool = False
+) -> np.ndarray:
     """All Np x Ntheta grasps u = (x, y, theta): positions covering the group's convex hull,
-    orientations k pi / Ntheta, k = 0..Ntheta-1 (a parallel-jaw grasp is symmetric under pi)."""
+    orientations k pi / Ntheta, k = 0..Ntheta-1 (a parallel-jaw grasp is symmetric under pi).
+
+    ``edge_orientations`` (an extension, off for the paper's experiments) adds a first block of
+    Np grasps per edge-normal direction of the group (`edge_normal_angles`), so that ranking
+    ties, which keep generation order, go to jaws parallel to an object's edges; grid
+    orientations within 0.01 rad of an edge direction are then left out as repeats.
+    """
     pts = np.concatenate([polys.polygon(int(i)) for i in group])
     hull = convex_hull_ccw(pts)
     if len(hull) < 3:
@@ -63,9 +101,15 @@ def candidate_grasps(polys: PolygonSet, group, n_positions: int = 70, n_orientat
     else:
         pos = hull_positions(hull, n_positions)
     th = np.arange(n_orientations) * np.pi / n_orientations
-    P = np.repeat(pos, len(th), axis=0)
-    T = np.tile(th, len(pos))
-    return np.column_stack([P, T])
+    blocks = []
+    if edge_orientations:
+        edges = edge_normal_angles(polys, group)
+        th = np.array([t for t in th if min(_angle_gap(t, e) for e in edges) > 0.01])
+        blocks.append(edges)
+    blocks.append(th)
+    return np.concatenate(
+        [np.column_stack([np.repeat(pos, len(b), axis=0), np.tile(b, len(pos))]) for b in blocks if len(b)]
+    )
 
 
 def gen_grasp_cands(
@@ -74,12 +118,13 @@ def gen_grasp_cands(
     gripper: GripperGeometry | None = None,
     n_positions: int = 70,
     n_orientations: int = 7,
+    edge_orientations: bool = False,
 ) -> np.ndarray:
     """GenGraspCands(): the collision-free grasps (B', 3) of the Np x Ntheta candidates.
 
     Candidates whose jaws overlap any object, in or out of the group, are rejected (Sec. 6.2).
     """
-    grasps = candidate_grasps(polys, group, n_positions, n_orientations)
+    grasps = candidate_grasps(polys, group, n_positions, n_orientations, edge_orientations)
     return grasps[jaw_collision_free(polys, grasps, gripper)]
 
 

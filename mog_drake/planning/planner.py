@@ -39,6 +39,9 @@ class PlannerConfig:
     n_positions: int = 70  # Np
     n_orientations: int = 7  # Ntheta
     max_physics: int | None = None  # stop after this many physics checks (None: never)
+    # An extension, off in the paper's experiments: also try closing axes normal to the
+    # group's edges, tried first among equals (see candidate_grasps).
+    edge_orientations: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -114,7 +117,9 @@ class GraspPlanner:
         polys = scene.polygons()
 
         t = time.perf_counter()
-        cands = gen_grasp_cands(polys, group, self.gripper, cfg.n_positions, cfg.n_orientations)
+        cands = gen_grasp_cands(
+            polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
+        )
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None

@@ -44,6 +44,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             n_positions=scenario.planner.n_positions,
             n_orientations=scenario.planner.n_orientations,
             max_physics=scenario.planner.max_physics_per_group or None,
+            edge_orientations=scenario.planner.edge_orientations,
         ),
     )
     planner_sys = builder.AddNamedSystem(
