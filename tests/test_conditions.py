@@ -222,3 +222,21 @@ def test_edge_orientations_come_first_and_meet_a_lone_bar_flat():
     square = make_scene([("thin_bar", 0.0, 0.0, 0.0)], group=[0])
     ext0 = candidate_grasps(square.polygons(), [0], 20, 7, edge_orientations=True)
     assert len(ext0) == n_pos * 8 and np.sum(np.isclose(ext0[:, 2], 0.0)) == n_pos
+
+
+def test_squeeze_basins_of_a_bar_and_a_square():
+    from conftest import make_scene
+
+    from mog_drake.geometry.polygon import squeeze_basins
+
+    yaw = 0.3
+    bar = make_scene([("thin_bar", 0.0, 0.0, yaw)]).polygon(0)
+    along, across = yaw, yaw + np.pi / 2
+    final, margin = squeeze_basins(bar, [along, along + 0.1, along - 0.1, along + 0.2, across, across + 1.0])
+    # within atan(7/50) of the bar's axis the squeeze ends end to end; beyond, across
+    np.testing.assert_allclose(final, [along, along, along, across, across, across], atol=np.pi / 1440)
+    edge = math.degrees(math.atan(7 / 50))
+    np.testing.assert_allclose(np.degrees(margin), [edge] * 3 + [90 - edge] * 3, atol=0.2)
+    cube = make_scene([("small_yellow_cube", 0.0, 0.0, 0.0)]).polygon(0)
+    _, m = squeeze_basins(cube, np.linspace(0, np.pi, 13))
+    np.testing.assert_allclose(np.degrees(m), 45.0, atol=0.2)

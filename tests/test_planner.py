@@ -240,3 +240,27 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     second = system.GetOutputPort("decision").Eval(ctx)
     assert first.counter == 1 and second.counter == 2 and len(second.recent) == 2
     assert not np.allclose(first.decision.grasp, second.decision.grasp)
+
+
+def test_squeeze_margin_keeps_a_lone_thin_bar_out_of_end_grips():
+    from mog_drake.geometry.polygon import squeeze_basins
+
+    scene = make_scene([("thin_bar", 0.0, 0.0, 0.3)], group=[0])
+    axis = 0.3
+    for margin, end_grips in ((0.0, True), (math.radians(12), False)):
+        v = FakeVerifier()
+        cfg = PlannerConfig(edge_orientations=True, min_squeeze_margin=margin)
+        res = GraspPlanner(v, cfg).plan(scene, [0])
+        off_axis = np.abs(np.remainder(res.candidate_grasps[:, 2] - axis + np.pi / 2, np.pi) - np.pi / 2)
+        assert bool(np.any(off_axis < math.atan(7 / 50))) == end_grips
+        assert res.tested == len(v.asked) > 0
+        _, m = squeeze_basins(scene.polygon(0), res.candidate_grasps[:, 2])
+        assert (m.min() >= margin) if margin else (m.min() < math.radians(12))
+    with pytest.raises(MogError, match="min_squeeze_margin"):
+        PlannerConfig(min_squeeze_margin=2.0)
+    # groups of two or more are not filtered
+    pair = make_scene([("thin_bar", 0.0, 0.0, 0.3), ("thin_bar", 0.0, 0.012, 0.3)], group=[0, 1])
+    cands_pair = GraspPlanner(FakeVerifier(), PlannerConfig(min_squeeze_margin=math.radians(12))).plan(
+        pair, [0, 1]
+    )
+    assert len(cands_pair.candidate_grasps) == len(gen_grasp_cands(pair.polygons(), [0, 1]))

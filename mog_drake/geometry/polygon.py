@@ -147,3 +147,52 @@ def transform(vertices: np.ndarray, x: float, y: float, theta: float) -> np.ndar
     c, s = np.cos(theta), np.sin(theta)
     v = np.asarray(vertices, dtype=float)
     return np.stack([c * v[:, 0] - s * v[:, 1] + x, s * v[:, 0] + c * v[:, 1] + y], axis=1)
+
+
+def diameter_function(vertices: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """D(phi): the polygon's extent along each direction phi (the jaw opening that closes on
+    it along that axis). Periodic in pi."""
+    v = np.asarray(vertices, dtype=float)
+    d = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    p = d @ v.T
+    return p.max(axis=-1) - p.min(axis=-1)
+
+
+def squeeze_basins(
+    vertices: np.ndarray, closing_angles, samples: int = 1440
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where a frictionless squeeze takes a single polygon, and how robustly.
+
+    Jaws closing along phi turn the polygon so that its extent D(phi) shrinks, until D is at
+    a local minimum (a jaw flat on an edge: a final diameter). For each closing angle this
+    returns that minimum's angle phi* (table frame, in [0, pi)) and the basin margin: the
+    angle from phi* to the nearer local maximum of D, i.e. how far the held polygon must be
+    turned about the vertical before the squeeze drives it on to another final diameter.
+    A thin bar held end to end has a margin of atan(width / length) (8 deg for 50 x 7 mm);
+    held across, the rest of the half turn. D is sampled every pi / ``samples``.
+    """
+    phi = np.arange(samples) * np.pi / samples
+    D = diameter_function(vertices, phi)
+    nxt, prv = np.roll(np.arange(samples), -1), np.roll(np.arange(samples), 1)
+    # steepest descent on the periodic grid: every sample points at its lower neighbour
+    step = np.where(D[nxt] < D[prv], nxt, prv)
+    down = np.where(np.minimum(D[nxt], D[prv]) < D, step, np.arange(samples))
+    basin = np.arange(samples)
+    for _ in range(samples):  # pointer jumping to the fixed points (local minima)
+        nb = down[basin]
+        if np.array_equal(nb, basin):
+            break
+        basin = nb
+    is_max = (D >= D[nxt]) & (D >= D[prv]) & ~((D == D[nxt]) & (D == D[prv]))
+    maxima = np.flatnonzero(is_max)
+    if len(maxima) == 0:  # a circle-like D: no preferred turn
+        margin_at = np.full(samples, np.pi / 2)
+    else:
+        gap = np.abs((phi[:, None] - phi[maxima][None, :] + np.pi / 2) % np.pi - np.pi / 2)
+        margin_at = gap.min(axis=1)
+    q = (
+        np.round(np.remainder(np.asarray(closing_angles, dtype=float), np.pi) / np.pi * samples).astype(int)
+        % samples
+    )
+    m = basin[q]
+    return phi[m], margin_at[m]

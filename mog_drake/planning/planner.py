@@ -19,6 +19,7 @@ Methods, exactly as the paper defines them:
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.geometry.polygon import squeeze_basins
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
@@ -42,12 +44,18 @@ class PlannerConfig:
     # An extension, off in the paper's experiments: also try closing axes normal to the
     # group's edges, tried first among equals (see candidate_grasps).
     edge_orientations: bool = False
+    # An extension, 0 (off) in the paper's experiments: a lone object is not grasped along an
+    # axis from which a turn smaller than this (rad) about the vertical lets the squeeze drive
+    # it on to another final diameter (see squeeze_basins): a thin bar held end to end.
+    min_squeeze_margin: float = 0.0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise MogError(f"unknown planner method '{self.method}' (known: {', '.join(METHODS)})")
         if self.n_positions < 1 or self.n_orientations < 1:
             raise MogError("n_positions and n_orientations must be at least 1")
+        if not 0 <= self.min_squeeze_margin < math.pi / 2:
+            raise MogError(f"min_squeeze_margin must be in [0, pi/2) rad, got {self.min_squeeze_margin}")
 
 
 @dataclass
@@ -120,6 +128,9 @@ class GraspPlanner:
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
         )
+        if cfg.min_squeeze_margin > 0 and len(group) == 1 and len(cands):
+            _, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
+            cands = cands[margin >= cfg.min_squeeze_margin]
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None

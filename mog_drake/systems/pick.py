@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             n_orientations=scenario.planner.n_orientations,
             max_physics=scenario.planner.max_physics_per_group or None,
             edge_orientations=scenario.planner.edge_orientations,
+            min_squeeze_margin=math.radians(scenario.planner.min_squeeze_margin_deg),
         ),
     )
     planner_sys = builder.AddNamedSystem(
