@@ -148,8 +148,8 @@ class PlannerSpec:
     # grid orientations k pi / n alone pinch a lone thin bar across its corners.
     edge_orientations: bool = True
     # A lone object is not grasped where a turn under this many degrees lets the squeeze carry
-    # it on to another final diameter: a thin bar held end to end (8 deg) twists out of the
-    # jaws when the arm swings to the bin. Every other library shape has 14 deg or more.
+    # it on to another final diameter: a thin bar held end to end (8 deg) can be twisted out of
+    # the jaws by the swing to the bin. Every other library shape has 14 deg or more.
     min_squeeze_margin_deg: float = 12.0
 
 
