@@ -6,7 +6,7 @@ import numpy as np
 
 from mog_drake.geometry.conditions import GraspEvaluation, PolygonSet, jaw_collision_free
 from mog_drake.geometry.gripper import GripperGeometry
-from mog_drake.geometry.polygon import convex_hull_ccw, polygon_area
+from mog_drake.geometry.polygon import axis_gap, convex_hull_ccw, polygon_area
 
 
 def _strictly_inside(hull: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -68,7 +68,7 @@ def edge_normal_angles(polys: PolygonSet, group, tol: float = 1e-3) -> np.ndarra
     weight: list[float] = []
     for a, w in zip(angles, lengths):
         for k, b in enumerate(dirs):
-            if _angle_gap(a, b) <= tol:
+            if axis_gap(a, b) <= tol:
                 weight[k] += w
                 break
         else:
@@ -76,11 +76,6 @@ def edge_normal_angles(polys: PolygonSet, group, tol: float = 1e-3) -> np.ndarra
             weight.append(float(w))
     order = sorted(range(len(dirs)), key=lambda k: (-weight[k], dirs[k]))
     return np.asarray([dirs[k] for k in order])
-
-
-def _angle_gap(a: float, b: float) -> float:
-    """Distance between two directions modulo pi."""
-    return abs((a - b + np.pi / 2) % np.pi - np.pi / 2)
 
 
 def candidate_grasps(
@@ -104,7 +99,7 @@ def candidate_grasps(
     blocks = []
     if edge_orientations:
         edges = edge_normal_angles(polys, group)
-        th = np.array([t for t in th if min(_angle_gap(t, e) for e in edges) > 0.01])
+        th = th[axis_gap(th[:, None], edges[None, :]).min(axis=1) > 0.01]
         blocks.append(edges)
     blocks.append(th)
     return np.concatenate(

@@ -149,6 +149,11 @@ def transform(vertices: np.ndarray, x: float, y: float, theta: float) -> np.ndar
     return np.stack([c * v[:, 0] - s * v[:, 1] + x, s * v[:, 0] + c * v[:, 1] + y], axis=1)
 
 
+def axis_gap(a, b):
+    """Angle (rad) between two axes, i.e. directions modulo pi (elementwise, broadcasting)."""
+    return np.abs(np.remainder(np.asarray(a) - np.asarray(b) + np.pi / 2, np.pi) - np.pi / 2)
+
+
 def diameter_function(vertices: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """D(phi): the polygon's extent along each direction phi (the jaw opening that closes on
     it along that axis). Periodic in pi."""
@@ -188,8 +193,7 @@ def squeeze_basins(
     if len(maxima) == 0:  # a circle-like D: no preferred turn
         margin_at = np.full(samples, np.pi / 2)
     else:
-        gap = np.abs((phi[:, None] - phi[maxima][None, :] + np.pi / 2) % np.pi - np.pi / 2)
-        margin_at = gap.min(axis=1)
+        margin_at = axis_gap(phi[:, None], phi[maxima][None, :]).min(axis=1)
     q = (
         np.round(np.remainder(np.asarray(closing_angles, dtype=float), np.pi) / np.pi * samples).astype(int)
         % samples

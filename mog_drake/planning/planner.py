@@ -27,7 +27,7 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
-from mog_drake.geometry.polygon import squeeze_basins
+from mog_drake.geometry.polygon import axis_gap, squeeze_basins
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
@@ -154,7 +154,7 @@ class GraspPlanner:
         if len(avoid) and len(cands):
             a = np.asarray(avoid, dtype=float).reshape(-1, 3)
             near = np.linalg.norm(cands[:, None, :2] - a[None, :, :2], axis=2) < 0.005
-            dth = np.abs(np.remainder(cands[:, None, 2] - a[None, :, 2] + np.pi / 2, np.pi) - np.pi / 2)
+            dth = axis_gap(cands[:, None, 2], a[None, :, 2])
             repeat = np.any(near & (dth < 0.15), axis=1)
             order = order[~repeat[order]]
 
