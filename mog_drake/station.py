@@ -151,6 +151,17 @@ class PlannerSpec:
     # it on to another final diameter: a thin bar held end to end (8 deg) can be twisted out of
     # the jaws by the swing to the bin. Every other library shape has 14 deg or more.
     min_squeeze_margin_deg: float = 12.0
+    # The physics check holds a lifted grasp this long before its verdict: as long as the arm
+    # takes to lift it and carry it to the bin (about 2.6 s). A thin bar lying on its side,
+    # held end to end by the bottom 5 mm of its end faces, lifts, creeps in the jaws and slips
+    # out about 2 s later: the 0.2 s hold of the paper's experiments passes it.
+    hold_s: float = 2.5
+    # After a failed physics check, try a new closing axis before other points on a failed one
+    # (an extension; the paper's experiments go down the ranked list).
+    vary_axis: bool = True
+    # A lone object is gripped along the axis the squeeze forgives most (widest squeeze basin,
+    # then total area): area alone grips a bar lying on its side end to end (an extension).
+    lone_widest_basin: bool = True
 
 
 @dataclass
@@ -224,6 +235,8 @@ def check_planner_spec(spec: PlannerSpec) -> None:
         raise MogError(
             f"planner: min_squeeze_margin_deg must be in [0, 90), got {spec.min_squeeze_margin_deg}"
         )
+    if not 0 < spec.hold_s <= 30:
+        raise MogError(f"planner: hold_s must be in (0, 30] s, got {spec.hold_s}")
 
 
 class _DesiredState(LeafSystem):

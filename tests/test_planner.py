@@ -6,6 +6,7 @@ from conftest import make_scene
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.geometry.polygon import axis_gap
 from mog_drake.planning.planner import METHODS, GraspPlanner, PlannerConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import row_scene
@@ -264,3 +265,39 @@ def test_squeeze_margin_keeps_a_lone_thin_bar_out_of_end_grips():
         pair, [0, 1]
     )
     assert len(cands_pair.candidate_grasps) == len(gen_grasp_cands(pair.polygons(), [0, 1]))
+
+
+def test_vary_axis_tries_a_new_closing_axis_after_each_failure():
+    # A bar lying on its side (50 x 30 mm): the area ranking puts several end-to-end grips first.
+    scene = make_scene([("thin_bar:on_side", 0.0, 0.0, 0.5)], group=[0])
+    gaps = {}
+    for vary in (False, True):
+        v = FakeVerifier()  # every check fails
+        res = GraspPlanner(v, PlannerConfig(edge_orientations=True, max_physics=4, vary_axis=vary)).plan(scene, [0])
+        assert res.grasp is None and res.tested == 4
+        axes = np.array([g[2] for g in v.asked])
+        gaps[vary] = axis_gap(axes[:, None], axes[None, :])[np.triu_indices(4, 1)]
+    assert gaps[False].min() < GraspPlanner.AXIS_TOL  # the plain ranking repeats an axis
+    assert gaps[True].min() >= GraspPlanner.AXIS_TOL  # each retry is on a new axis
+
+
+def test_lone_widest_basin_grips_a_bar_on_its_side_across_at_its_centre():
+    yaw = 0.5
+    scene = make_scene([("thin_bar:on_side", 0.02, -0.01, yaw)], group=[0])
+    first = {}
+    for widest in (False, True):
+        v = FakeVerifier()
+        cfg = PlannerConfig(edge_orientations=True, max_physics=1, lone_widest_basin=widest)
+        GraspPlanner(v, cfg).plan(scene, [0])
+        first[widest] = v.asked[0]
+    assert axis_gap(first[False][2], yaw) < math.radians(10)  # area alone: end to end
+    assert axis_gap(first[True][2], yaw + np.pi / 2) < 1e-9  # widest basin: across, on the edge normal
+    assert np.linalg.norm(first[True][:2] - [0.02, -0.01]) < 0.002
+    # groups of two or more keep the paper's ranking
+    pair = make_scene([("thin_bar", 0.0, 0.0, 0.3), ("thin_bar", 0.0, 0.012, 0.3)], group=[0, 1])
+    asked = []
+    for widest in (False, True):
+        v = FakeVerifier()
+        GraspPlanner(v, PlannerConfig(max_physics=3, lone_widest_basin=widest)).plan(pair, [0, 1])
+        asked.append(np.array(v.asked))
+    np.testing.assert_array_equal(asked[0], asked[1])

@@ -297,6 +297,9 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     f.write_text("planner:\n  method: fastest\n")
     with pytest.raises(MogError, match="planner.method .*'fastest'"):
         load_scenario(str(f))
+    f.write_text("planner:\n  hold_s: 0\n")
+    with pytest.raises(MogError, match="hold_s must be in"):
+        load_scenario(str(f))
 
 
 def test_carrying_is_gentler_than_moving_empty():

@@ -140,3 +140,21 @@ def test_early_exit_is_marked_and_can_wait_for_the_whole_group():
     assert not quick.success and not quick.complete and quick.sim_time < 1.0
     full = DrakeVerifier(VerifierConfig(early_exit_all=True)).check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not full.success and full.complete and full.lifted == [0] and full.sim_time > 1.1
+
+
+def test_a_long_hold_drops_a_bar_on_its_side_held_end_to_end():
+    """A bar lying on its side (7 mm tall), gripped end to end by the bottom 5 mm of its end
+    faces, lifts and then creeps out of the jaws: the paper's short hold passes it, a hold as
+    long as the carry to the bin does not. Held across, it stays."""
+    yaw = 0.5
+    scene = make_scene([("thin_bar:on_side", 0.0, 0.0, yaw)], group=[0])
+    contact = ContactConfig(mu_table=0.3)  # the picking world's table
+    out = {}
+    for hold in (0.2, 2.5):
+        v = DrakeVerifier(VerifierConfig(contact=contact, hold_time=hold))
+        for name, axis in (("end", yaw), ("across", yaw + math.pi / 2)):
+            out[name, hold] = v.check(scene, [0], (0.0, 0.0, axis))
+    assert out["end", 0.2].success and out["end", 0.2].final_opening > 0.044  # held by its ends
+    assert not out["end", 2.5].success and not out["end", 2.5].error
+    assert out["across", 0.2].success and out["across", 2.5].success
+    assert out["across", 2.5].final_opening == pytest.approx(0.030, abs=0.004)

@@ -48,6 +48,16 @@ class PlannerConfig:
     # axis from which a turn smaller than this (rad) about the vertical lets the squeeze drive
     # it on to another final diameter (see squeeze_basins): a thin bar held end to end.
     min_squeeze_margin: float = 0.0
+    # An extension, off in the paper's experiments: after a failed physics check, candidates
+    # whose closing axis is within AXIS_TOL of a failed one are tried only once no other axis
+    # is left. A grip that slips along one axis rarely holds a few mm further along it: a
+    # lone bar lying on its side ranks four end-to-end grips first, and all four slip.
+    vary_axis: bool = False
+    # An extension, off in the paper's experiments: a lone object's candidates are ranked by
+    # squeeze-basin margin, widest first (the closing axis the squeeze forgives most), total
+    # intersection area breaking ties. Area alone prefers the longest grip: a bar lying on its
+    # side held end to end, which slips.
+    lone_widest_basin: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -128,9 +138,11 @@ class GraspPlanner:
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
         )
-        if cfg.min_squeeze_margin > 0 and len(group) == 1 and len(cands):
-            _, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
-            cands = cands[margin >= cfg.min_squeeze_margin]
+        margin = None
+        if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
+            final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
+            keep = margin >= cfg.min_squeeze_margin
+            cands, margin, final = cands[keep], margin[keep], final[keep]
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None
@@ -144,6 +156,13 @@ class GraspPlanner:
         if _RANKED[method]:
             t = time.perf_counter()
             order = rank_grasp_cands(ev)
+            if cfg.lone_widest_basin and margin is not None:
+                # widest basin (to 0.5 deg), then nearest its final axis (to 5 deg), then
+                # nearest the object's centre (to 2 mm), then area
+                turn = np.round(axis_gap(cands[order, 2], final[order]) / math.radians(5))
+                widest = -np.round(margin[order] / math.radians(0.5))
+                off = np.round(np.linalg.norm(cands[order, :2] - polys.centers[group[0]], axis=1) / 0.002)
+                order = order[np.lexsort((off, turn, widest))]
             times["rank"] += time.perf_counter() - t
         else:
             order = rng.permutation(len(cands))
@@ -160,7 +179,7 @@ class GraspPlanner:
 
         grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()
-        for i in order:
+        for i in self._test_order(order, cands, cfg.vary_axis):
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
                 break
             last = self.verifier.check(scene, group, cands[i])
@@ -176,3 +195,25 @@ class GraspPlanner:
         return PlanResult(
             method, group, grasp, len(cands), n_passed, len(tested), times, last, tested, cands, best_lift
         )
+
+    AXIS_TOL = 0.15  # rad, closing axes this close (modulo pi) count as one axis
+
+    @classmethod
+    def _test_order(cls, order, cands, vary_axis: bool):
+        """Yields candidate indices in ``order``; with ``vary_axis``, each one after a failure
+        is the first whose axis is not within AXIS_TOL of an axis already tried (falling back
+        to ``order`` once every remaining axis was tried). The caller stops at a success."""
+        if not vary_axis:
+            yield from order
+            return
+        left = [int(i) for i in order]
+        tried: list[float] = []
+        while left:
+            k = 0
+            if tried:
+                gaps = axis_gap(cands[left, 2][:, None], np.asarray(tried)[None, :]).min(axis=1)
+                fresh = np.flatnonzero(gaps >= cls.AXIS_TOL)
+                k = int(fresh[0]) if len(fresh) else 0
+            i = left.pop(k)
+            tried.append(float(cands[i, 2]))
+            yield i

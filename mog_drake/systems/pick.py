@@ -21,6 +21,7 @@ from mog_drake.systems.motion import ArmMotion, MotionConfig
 def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+    from mog_drake.geometry import GripperGeometry
 
     check_planner_spec(scenario.planner)
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
@@ -37,7 +38,11 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
         contact=scenario.planner_contact,
         physics=scenario.gripper,
         early_exit_all=scenario.planner.partial_lifts,
+        hold_time=scenario.planner.hold_s,
     )
+    # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
+    default, jaws = VerifierConfig(), GripperGeometry()
+    vcfg.cpu_budget = default.cpu_budget * max(1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"])
     planner = GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
@@ -47,6 +52,8 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             max_physics=scenario.planner.max_physics_per_group or None,
             edge_orientations=scenario.planner.edge_orientations,
             min_squeeze_margin=math.radians(scenario.planner.min_squeeze_margin_deg),
+            vary_axis=scenario.planner.vary_axis,
+            lone_widest_basin=scenario.planner.lone_widest_basin,
         ),
     )
     planner_sys = builder.AddNamedSystem(
