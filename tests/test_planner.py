@@ -273,7 +273,9 @@ def test_vary_axis_tries_a_new_closing_axis_after_each_failure():
     gaps = {}
     for vary in (False, True):
         v = FakeVerifier()  # every check fails
-        res = GraspPlanner(v, PlannerConfig(edge_orientations=True, max_physics=4, vary_axis=vary)).plan(scene, [0])
+        res = GraspPlanner(v, PlannerConfig(edge_orientations=True, max_physics=4, vary_axis=vary)).plan(
+            scene, [0]
+        )
         assert res.grasp is None and res.tested == 4
         axes = np.array([g[2] for g in v.asked])
         gaps[vary] = axis_gap(axes[:, None], axes[None, :])[np.triu_indices(4, 1)]

@@ -20,8 +20,8 @@ from mog_drake.systems.motion import ArmMotion, MotionConfig
 
 def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
-    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
     from mog_drake.geometry import GripperGeometry
+    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
     check_planner_spec(scenario.planner)
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
@@ -42,7 +42,9 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     )
     # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
     default, jaws = VerifierConfig(), GripperGeometry()
-    vcfg.cpu_budget = default.cpu_budget * max(1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"])
+    vcfg.cpu_budget = default.cpu_budget * max(
+        1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
+    )
     planner = GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
