@@ -466,7 +466,7 @@ def cmd_pick(args) -> int:
         summary["replay"] = args.record
     _emit(
         args,
-        {"summary": summary, "attempts": run.attempts},
+        {"summary": summary, "attempts": run.attempts, "skipped": run.skipped},
         "\n"
         + format_table(
             [summary],
@@ -483,6 +483,7 @@ def cmd_pick(args) -> int:
             ],
         )
         + "".join(f"\nnot in the bin: object {i} ({sc_obj}) {w} at {p}" for i, (w, p), sc_obj in _left(run))
+        + "".join(f"\nskipped at t={k['t']:.1f} s, unreachable: {k['reason']}" for k in run.skipped)
         + (f"\nreplay: {args.record}" if args.record else ""),
     )
     if args.meshcat and sys.stdin.isatty():

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mog_drake.errors import MogError
 from mog_drake.geometry.polygon import polygon_centroid, transform
 from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 
@@ -123,10 +124,17 @@ class Perceiver:
         library: ShapeLibrary | None = None,
         config: PerceptionConfig | None = None,
         table=(-0.30, 0.30, -0.30, 0.30),
+        ignore=(),
     ):
+        """``ignore``: rectangles (xmin, xmax, ymin, ymax) of the table where no object is
+        looked for: fixtures standing on it, such as the bin, whose walls the camera sees."""
         self.library = library or default_library()
         self.config = config or PerceptionConfig()
         self.table = table
+        self.ignore = [tuple(float(v) for v in r) for r in ignore]
+        for r in self.ignore:
+            if len(r) != 4 or not (r[0] < r[1] and r[2] < r[3]):
+                raise MogError(f"an ignored region must be (xmin, xmax, ymin, ymax) with min < max, got {r}")
         names = list(self.config.shapes) or list(self.library.shapes)
         # Toppled bars too: the same colour, a different top height and footprint.
         names += [v for v in self.library.resting_variants() if self.library.base_shape(v) in names]
@@ -152,6 +160,8 @@ class Perceiver:
         ok = (
             np.isfinite(P[..., 2]) & (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
         )
+        for rx0, rx1, ry0, ry1 in self.ignore:
+            ok &= ~((P[..., 0] > rx0) & (P[..., 0] < rx1) & (P[..., 1] > ry0) & (P[..., 1] < ry1))
         obj = ok & (P[..., 2] > cfg.min_height) & (P[..., 2] < cfg.max_height)
         table = ok & (P[..., 2] <= cfg.min_height)
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.

@@ -92,6 +92,13 @@ class BinSpec:
     center: list[float] = field(default_factory=lambda: [-0.25, 0.38])
     inner: list[float] = field(default_factory=lambda: [0.24, 0.18])
     depth: float = 0.10
+    wall: float = 0.01
+
+    def footprint(self, margin: float = 0.0) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the bin's outside walls, grown by ``margin``."""
+        hx, hy = self.inner[0] / 2 + self.wall + margin, self.inner[1] / 2 + self.wall + margin
+        cx, cy = self.center
+        return (cx - hx, cx + hx, cy - hy, cy + hy)
 
 
 @dataclass
@@ -102,7 +109,10 @@ class CameraSpec:
     yaw: float = 0.0  # rotation about the vertical (rad)
     width: int = 640
     height: int = 480
-    fov_y_deg: float = 30.0  # 0.43 m of table over 480 rows: 0.9 mm per pixel
+    # 0.61 m over 480 rows (1.3 mm per pixel): the whole table, so that an object pushed to
+    # its edge is still seen (at 30 deg, 0.9 mm per pixel, objects pushed past |y| = 0.21 m
+    # were lost from view and left on the table).
+    fov_y_deg: float = 42.0
     depth_min: float = 0.1
     depth_max: float = 2.0
 
@@ -162,6 +172,9 @@ class PlannerSpec:
     # A lone object is gripped along the axis the squeeze forgives most (widest squeeze basin,
     # then total area): area alone grips a bar lying on its side end to end (an extension).
     lone_widest_basin: bool = True
+    # A group found to have no grasp is not planned again while every object within its reach
+    # lies where it was (an extension of Alg. 1: the same checks would give the same verdicts).
+    remember_failures: bool = True
 
 
 @dataclass
@@ -202,6 +215,11 @@ class Scenario:
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])
     time_limit: float = 600.0  # s of simulated robot time
     hardware: HardwareSpec = field(default_factory=HardwareSpec)
+
+    def perception_ignore(self) -> list[tuple[float, float, float, float]]:
+        """Regions where perception looks for no object: the bin and 5 mm around it (the
+        camera sees the outside of its walls)."""
+        return [self.bin.footprint(0.005)]
 
 
 def load_scenario(path: str | None = None) -> Scenario:
@@ -370,6 +388,7 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
         RigidTransform([*scenario.bin.center, 0.0]),
         inner=tuple(scenario.bin.inner),
         depth=scenario.bin.depth,
+        wall=scenario.bin.wall,
     )
 
     robot = Parser(plant).AddModels(str(URDF_PATH))[0]

@@ -303,3 +303,56 @@ def test_lone_widest_basin_grips_a_bar_on_its_side_across_at_its_centre():
         GraspPlanner(v, PlannerConfig(max_physics=3, lone_widest_basin=widest)).plan(pair, [0, 1])
         asked.append(np.array(v.asked))
     np.testing.assert_array_equal(asked[0], asked[1])
+
+
+def test_a_failed_group_is_not_planned_again_while_its_surroundings_are_unchanged():
+    """Picking the lone cube leaves the bar row (no grasp found) where it was: the next
+    decision replays the row's failure, partial lift included, in the new scene's object ids,
+    without a physics check. A bar moved 5 mm, or a new object within reach, and it is
+    planned again."""
+    from mog_drake.planning.picking import next_pick
+
+    bars = [("thin_bar", -0.012, 0.0, math.pi / 2), ("thin_bar", 0.0, 0.0, math.pi / 2)]
+    bars.append(("thin_bar", 0.012, 0.0, math.pi / 2))
+
+    class PairAtBest(FakeVerifier):  # the row: every check lifts its first two bars, never all
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            if len(group) == 1:
+                return GraspResult(True, lifted=list(group))
+            return GraspResult(False, lifted=sorted(group)[:2])
+
+    v = PairAtBest()
+    planner = GraspPlanner(v, PlannerConfig("gp", max_physics=2))
+    d1 = next_pick(make_scene(bars + [("small_yellow_cube", 0.15, 0.15, 0.0)]), planner, failures=())
+    assert d1.status == "grasp" and d1.partial and d1.expected == (0, 1) and d1.remembered == 0
+    assert [f.group for f in d1.failures] == [(0, 1, 2)] and len(v.asked) == 2
+
+    # The pair was lifted away... in a world that did not listen: the row is still there, its
+    # objects listed in another order (ids 2, 1, 0 now), the cube gone.
+    v.asked.clear()
+    d2 = next_pick(make_scene(bars[::-1]), planner, failures=d1.failures)
+    assert v.asked == [] and d2.remembered == 1 and d2.physics_checks == 0
+    assert d2.status == "grasp" and d2.partial and set(d2.expected) == {2, 1}
+    np.testing.assert_allclose(d2.grasp, d1.grasp)
+    assert [f.group for f in d2.failures] == [(0, 1, 2)]
+    # The robot tried that pair grasp and the row is still there: it is not offered again,
+    # the singles are planned instead.
+    d2b = next_pick(make_scene(bars[::-1]), planner, avoid=[d1.grasp], failures=d1.failures)
+    assert d2b.remembered == 1 and d2b.status == "grasp" and not d2b.partial
+    assert v.asked == [d2b.group] and len(d2b.group) == 1
+    v.asked.clear()
+
+    moved = [bars[0], bars[1], ("thin_bar", 0.017, 0.0, math.pi / 2)]
+    d3 = next_pick(make_scene(moved), planner, failures=d1.failures)
+    assert d3.remembered == 0 and v.asked == [(0, 1, 2)] * 2
+
+    v.asked.clear()
+    crowded = make_scene(bars + [("small_yellow_cube", 0.0, 0.06, 0.0)])
+    d4 = next_pick(crowded, planner, failures=d1.failures)
+    assert d4.remembered == 0 and v.asked[:2] == [(0, 1, 2)] * 2
+
+    # Off (failures=None), as in the paper's Alg. 1: nothing remembered.
+    v.asked.clear()
+    d5 = next_pick(make_scene(bars[::-1]), planner)
+    assert d5.failures == () and d5.remembered == 0 and len(v.asked) == 2

@@ -75,7 +75,7 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
 
     sc, d, h = station33
     rgb, depth = render_still(sc, d)
-    seen = Perceiver(table=sc.table).perceive(
+    seen = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(
         rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
     )
     errs = pose_errors(seen, h.scene)
@@ -160,6 +160,67 @@ def test_controller_state_machine_with_fixed_inputs():
     assert c.GetOutputPort("request").Eval(ctx)[0] == 2  # asks for the next observation
 
 
+def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():
+    """A grasp the arm cannot reach is recorded and the controller observes again (the planner
+    will not repeat it); only three unreachable grasps in a row end the run."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.planning.picking import PickDecision
+    from mog_drake.station import FLANGE_TO_PALM
+    from mog_drake.systems.leaf_systems import ControllerSystem, Decision
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    c = ControllerSystem(m, sc.robot.home, sc.bin.center, sc.bin.depth)
+    ctx = c.CreateDefaultContext()
+    c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
+    c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
+    decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
+    sim = Simulator(c, ctx)
+    sim.AdvanceTo(0.5)
+    far = np.array([3.0, 0.0, 0.0])  # three metres from the base: out of the UR5's reach
+    for k in (1, 2, 3):
+        request = int(c.GetOutputPort("request").Eval(ctx)[0])
+        decision.GetMutableData().set_value(
+            Decision(request, PickDecision("grasp", far, (0,), planning_time=0.25), 4)
+        )
+        sim.AdvanceTo(ctx.get_time() + 0.05)
+        s = c.state(ctx)
+        assert len(s.skipped) == k and s.attempts == []
+        assert "no arm configuration" in s.skipped[-1]["reason"] and s.skipped[-1]["grasp"] == far.tolist()
+        if k < 3:
+            assert s.mode == "wait" and c.GetOutputPort("request").Eval(ctx)[0] == request + 1
+    assert s.mode == "done" and s.finished.startswith("unreachable grasp (3 in a row)")
+
+
+def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
+    """One failed solve of the drop pose (a poor seed) does not fail the attempt."""
+    from mog_drake.errors import MogError
+    from mog_drake.station import FLANGE_TO_PALM
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    real_ik, calls = m.ik, []
+
+    def flaky(position, yaw, q_seed, **kw):
+        calls.append(yaw)
+        if len(calls) <= 2:
+            raise MogError("no arm configuration reaches (simulated solver failure)")
+        return real_ik(position, yaw, q_seed, **kw)
+
+    monkeypatch.setattr(m, "ik", flaky)
+    p = [sc.bin.center[0], sc.bin.center[1], 0.3]
+    q = m.bin_ik(p, 0.4, (np.array(sc.robot.home), np.array(sc.robot.home)))
+    assert len(calls) == 3 and calls[2] == pytest.approx(0.4 + np.pi / 2)
+    np.testing.assert_allclose(m.palm_pose(q).translation(), p, atol=5e-4)
+    monkeypatch.setattr(m, "ik", lambda *a, **kw: (_ for _ in ()).throw(MogError("no")))
+    with pytest.raises(MogError, match="drop pose above the bin"):
+        m.bin_ik(p, 0.4, (np.array(sc.robot.home),))
+
+
 def test_scenario_yaml_overrides_defaults(tmp_path):
     f = tmp_path / "s.yaml"
     f.write_text("scene: {kind: row, row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
@@ -202,8 +263,10 @@ def test_objects_outside_the_bin_are_located():
 
     h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([0.0, 0.45, 0.02]))  # table, not in view
     h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.0, -0.5]))  # on the floor
-    assert sc.camera.sees([0.0, 0.0, 0.0]) and sc.camera.sees([0.25, 0.18, 0.0])
-    assert not sc.camera.sees([0.0, 0.25, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
+    # The camera sees the whole table (up to its corners) and nothing beyond its field of view.
+    x0, x1, y0, y1 = sc.table
+    assert all(sc.camera.sees([x, y, 0.0]) for x in (x0 + 1e-3, x1 - 1e-3) for y in (y0 + 1e-3, y1 - 1e-3))
+    assert not sc.camera.sees([0.0, 0.35, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
     left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
     assert [left[i][0] for i in range(3)] == ["in view", "out of view", "off the table"]
 
@@ -280,7 +343,7 @@ def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
     sc = Scenario(scene=SceneSpec(file=str(tmp_path / "toppled.yaml")))
     d, h = MakeStation(sc)
     rgb, depth = render_still(sc, d)
-    seen = Perceiver(table=sc.table).perceive(
+    seen = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(
         rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
     )
     errs = pose_errors(seen, truth)

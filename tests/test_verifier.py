@@ -5,10 +5,10 @@ import math
 import pytest
 from conftest import make_scene
 
-from mog_drake.geometry import evaluate_grasps
+from mog_drake.geometry import evaluate_grasps, objects_in_reach
 from mog_drake.planning.protocol import Verifier
 from mog_drake.sim.models import ContactConfig
-from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig, objects_in_reach
+from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
 
 @pytest.fixture(scope="module")
@@ -129,17 +129,20 @@ def test_check_simulate_cli(tmp_path, capsys):
     assert b"object_0" in raw and b"left_finger" in raw and b"set_animation" in raw
 
 
-def test_early_exit_is_marked_and_can_wait_for_the_whole_group():
+def test_early_exit_is_marked_and_can_wait_for_a_partial_lift():
     """Group: a bar between the jaws and a cube out of their reach. The default check stops
-    once the cube is certainly left (incomplete: its `lifted` proves nothing); with
-    early_exit_all it runs to the end and reports the bar as held."""
+    once the cube is certainly left (incomplete: its `lifted` proves nothing); asked to report
+    partial lifts of one object it runs to the end and reports the bar as held; of two, it
+    stops as early as the default."""
     scene = make_scene(
         [("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.06, 0.0)], group=(0, 1)
     )
     quick = DrakeVerifier().check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not quick.success and not quick.complete and quick.sim_time < 1.0
-    full = DrakeVerifier(VerifierConfig(early_exit_all=True)).check(scene, (0, 1), [0.0, 0.0, 0.0])
+    full = DrakeVerifier(VerifierConfig(report_partial_lifts=1)).check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not full.success and full.complete and full.lifted == [0] and full.sim_time > 1.1
+    two = DrakeVerifier(VerifierConfig(report_partial_lifts=2)).check(scene, (0, 1), [0.0, 0.0, 0.0])
+    assert not two.success and not two.complete and two.sim_time == pytest.approx(quick.sim_time)
 
 
 def test_a_long_hold_drops_a_bar_on_its_side_held_end_to_end():

@@ -40,7 +40,14 @@ def picking_worker(task: dict) -> dict:
     )
     scenario.planner = replace(PlannerSpec(), mode=task["mode"], seed=task["scene_seed"])
     run = run_pick(scenario)
-    return {**task, "summary": run.summary(), "attempts": run.attempts}
+    return {
+        **task,
+        "summary": run.summary(),
+        "attempts": run.attempts,
+        "skipped": run.skipped,
+        # Where each object outside the bin ended: {id: [where, [x, y, z], shape]}.
+        "left": {str(i): [w, p, run.shapes[i]] for i, (w, p) in run.left.items()},
+    }
 
 
 def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float) -> list[dict]:

@@ -18,7 +18,12 @@ from mog_drake.geometry.conditions import (
     jaw_collision_free,
 )
 from mog_drake.geometry.gripper import GripperGeometry
-from mog_drake.geometry.groups import DEFAULT_GROUP_RADIUS, create_obj_groups, rank_obj_groups
+from mog_drake.geometry.groups import (
+    DEFAULT_GROUP_RADIUS,
+    create_obj_groups,
+    objects_in_reach,
+    rank_obj_groups,
+)
 from mog_drake.geometry.polygon import (
     final_diameters,
     min_final_diameter,
@@ -38,6 +43,7 @@ __all__ = [
     "final_diameters",
     "gen_grasp_cands",
     "grasp_failure",
+    "objects_in_reach",
     "hull_positions",
     "jaw_collision_free",
     "min_final_diameter",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from mog_drake.geometry.polygon import LENGTH_TOL
 
@@ -37,3 +38,13 @@ def rank_obj_groups(groups, d_fmin, w_g: float) -> list[tuple[int, ...]]:
     d = np.asarray(d_fmin, dtype=float)
     feasible = [g for g in groups if d[list(g)].sum() <= w_g + LENGTH_TOL]
     return sorted(feasible, key=lambda g: -len(g))
+
+
+def objects_in_reach(scene, group, gripper, margin: float) -> list[int]:
+    """The group plus every object whose bounding circle comes within the gripper's reach of
+    the group's convex hull (where every candidate of the group lies), plus ``margin``."""
+    polys = scene.polygons()
+    hull = shapely.convex_hull(shapely.MultiPoint(np.concatenate([polys.polygon(int(i)) for i in group])))
+    d = shapely.distance(hull, shapely.points(polys.centers))
+    near = np.flatnonzero(d < polys.radii + gripper.reach_radius + margin)
+    return sorted(set(int(i) for i in near) | set(int(i) for i in group))

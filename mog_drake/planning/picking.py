@@ -13,15 +13,73 @@ Planner and Controller systems' job; this module decides the next grasp for one 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import DEFAULT_GROUP_RADIUS, create_obj_groups, rank_obj_groups
-from mog_drake.planning.planner import GraspPlanner, PlanResult
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS, create_obj_groups, objects_in_reach, rank_obj_groups
+from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 
 MODES = ("mog", "sog")
+
+# A remembered failure applies while every object within reach of its group is where it was
+# (each vertex within this distance: perception's error on a resting object is about 1 mm).
+MEMORY_TOL = 0.003  # m
+MEMORY_REACH_MARGIN = 0.03  # m around the gripper's reach (the physics check uses 0.02)
+MEMORY_SIZE = 64
+
+
+@dataclass(frozen=True)
+class FailedGroup:
+    """A group the planner found no grasp for, with what the physics check saw. ``around``
+    holds (id, shape, vertices) of every object within reach of the group then: the check's
+    verdict depends on nothing else, so while they are all where they were it stands."""
+
+    group: tuple[int, ...]
+    around: tuple
+    result: PlanResult
+
+
+def _around(scene, group, gripper) -> tuple:
+    ids = objects_in_reach(scene, group, gripper, MEMORY_REACH_MARGIN)
+    return tuple((i, scene.objects[i].shape, scene.polygon(i)) for i in ids)
+
+
+def _match(old: tuple, new: tuple, tol: float = MEMORY_TOL) -> dict[int, int] | None:
+    """Old id -> new id if every object of ``old`` is one of ``new`` (same shape, every vertex
+    within ``tol`` of one of the other's: a symmetric shape turned by its symmetry matches)
+    and no object is new; else None."""
+    if len(old) != len(new):
+        return None
+    ids, free = {}, list(new)
+    for i, shape, v in old:
+        for k, (j, shape_j, w) in enumerate(free):
+            if shape_j == shape and len(w) == len(v):
+                d = np.linalg.norm(v[:, None, :] - w[None, :, :], axis=2)
+                if d.min(axis=1).max() <= tol:
+                    ids[i] = j
+                    del free[k]
+                    break
+        else:
+            return None
+    return ids
+
+
+def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=()) -> PlanResult:
+    """The remembered plan, in the new scene's object ids, with no physics run now. Its partial
+    lift is dropped if it repeats a grasp to avoid (the robot just tried it)."""
+    lift = f.result.best_lift
+    if lift is not None and repeats([lift[0]], avoid)[0]:
+        lift = None
+    return replace(
+        f.result,
+        group=tuple(group),
+        tested=0,
+        tested_indices=[],
+        best_lift=None if lift is None else (lift[0], [ids[i] for i in lift[1] if i in ids]),
+        result=None,
+    )
 
 
 @dataclass
@@ -38,6 +96,10 @@ class PickDecision:
     physics_checks: int = 0
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
+    remembered: int = 0  # groups not planned again: their failure was remembered
+    # What to remember for the next decision: failures seen (or replayed) now, then the older
+    # ones not met this time (see next_pick's ``failures``).
+    failures: tuple[FailedGroup, ...] = ()
 
     def to_dict(self) -> dict:
         return {
@@ -49,6 +111,7 @@ class PickDecision:
             "expected": list(self.expected),
             "physics_checks": self.physics_checks,
             "planning_time": self.planning_time,
+            "remembered": self.remembered,
         }
 
 
@@ -60,6 +123,7 @@ def next_pick(
     group_radius: float = DEFAULT_GROUP_RADIUS,
     partial_lifts: bool = True,
     avoid=(),
+    failures: tuple[FailedGroup, ...] | None = None,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -73,7 +137,13 @@ def next_pick(
     it is taken rather than giving up when no group succeeds.
 
     avoid: grasps not to try again (the robot's last few), so that a grasp the physics check
-    trusts but the world keeps failing is not repeated attempt after attempt."""
+    trusts but the world keeps failing is not repeated attempt after attempt.
+
+    failures (an extension; None: off): the previous decision's ``failures``. A group found
+    to have no grasp is not planned again while every object within its reach lies where it
+    did (its physics checks would replay the same verdicts); its remembered plan, partial lift
+    included, stands in. Picking one group leaves most of the table untouched, so without
+    this the same failing groups are simulated again before every attempt."""
     if mode not in MODES:
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
     t0 = time.perf_counter()
@@ -94,10 +164,25 @@ def next_pick(
     partial_lifts = partial_lifts and mode == "mog"
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
+    pending = list(failures or ())  # remembered failures not yet met in this scene
+    seen: list[FailedGroup] = []
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
-        res = planner.plan(scene, group, rng=rng, avoid=avoid)
+        res = None
+        if failures is not None:
+            around = _around(scene, group, planner.gripper)
+            for f in pending:
+                if len(f.group) == len(group) and (ids := _match(f.around, around)) is not None:
+                    if set(ids[i] for i in f.group) == set(group):
+                        res = _replay(f, ids, group, avoid)
+                        decision.remembered += 1
+                        pending.remove(f)
+                        break
+        if res is None:
+            res = planner.plan(scene, group, rng=rng, avoid=avoid)
+        if failures is not None and not res.found:
+            seen.append(FailedGroup(tuple(res.group), around, res))
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested
@@ -110,5 +195,7 @@ def next_pick(
     if decision.status != "grasp" and partial_lifts and best is not None:
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
         decision.partial, decision.expected = True, tuple(best[1])
+    if failures is not None:
+        decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
     decision.planning_time = time.perf_counter() - t0
     return decision

@@ -68,6 +68,17 @@ class PlannerConfig:
             raise MogError(f"min_squeeze_margin must be in [0, pi/2) rad, got {self.min_squeeze_margin}")
 
 
+def repeats(grasps, avoid) -> np.ndarray:
+    """Which of ``grasps`` (N, 3) repeat one of ``avoid`` (M, 3): within 5 mm and 0.15 rad
+    (closing axes modulo pi)."""
+    g = np.asarray(grasps, dtype=float).reshape(-1, 3)
+    a = np.asarray(avoid, dtype=float).reshape(-1, 3)
+    if not len(a):
+        return np.zeros(len(g), dtype=bool)
+    near = np.linalg.norm(g[:, None, :2] - a[None, :, :2], axis=2) < 0.005
+    return np.any(near & (axis_gap(g[:, None, 2], a[None, :, 2]) < 0.15), axis=1)
+
+
 @dataclass
 class PlanResult:
     """What GraspPlanner.plan returns. ``grasp`` is None when no candidate succeeded."""
@@ -171,11 +182,7 @@ class GraspPlanner:
             order = order[passed[order]]  # GraspFailure(): drop candidates violating a condition
             times["filter"] += time.perf_counter() - t
         if len(avoid) and len(cands):
-            a = np.asarray(avoid, dtype=float).reshape(-1, 3)
-            near = np.linalg.norm(cands[:, None, :2] - a[None, :, :2], axis=2) < 0.005
-            dth = axis_gap(cands[:, None, 2], a[None, :, 2])
-            repeat = np.any(near & (dth < 0.15), axis=1)
-            order = order[~repeat[order]]
+            order = order[~repeats(cands, avoid)[order]]
 
         grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()

@@ -16,7 +16,7 @@ from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, DiagramBuilder, EventStatus, LeafSystem
 
-from mog_drake.geometry import GripperGeometry
+from mog_drake.geometry import GripperGeometry, objects_in_reach
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -51,9 +51,10 @@ class VerifierConfig:
     # can never be lifted (the gripper only rises from then on). Same verdict, less time.
     early_exit: bool = True
     # With early_exit: stop when any group object is certainly left (the verdict is then
-    # known), or, with early_exit_all, only once every group object is, so that a check that
-    # lifts part of the group runs to the end and reports which objects it held.
-    early_exit_all: bool = False
+    # known); or, with report_partial_lifts = k > 0, only once fewer than k group objects may
+    # still be lifted, so that a check lifting k or more of the group runs to the end and
+    # reports which objects it held (k = 1: wait until every group object is left).
+    report_partial_lifts: int = 0
 
     def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
         t_close0 = self.settle_time
@@ -112,18 +113,6 @@ class GraspScript(LeafSystem):
         z = self._z0 + s * self._cfg.lift_height
         zd = sd * self._cfg.lift_height / dur if tl["lift0"] <= t <= tl["lift1"] else 0.0
         output.SetFromVector([x, y, z, th, -f, f, 0.0, 0.0, zd, 0.0, -fd, fd])
-
-
-def objects_in_reach(scene, group, gripper: GripperGeometry, margin: float) -> list[int]:
-    """The group plus every object whose bounding circle comes within the gripper's reach of
-    the group's convex hull (where every candidate of the group lies), plus ``margin``."""
-    import shapely
-
-    polys = scene.polygons()
-    hull = shapely.convex_hull(shapely.MultiPoint(np.concatenate([polys.polygon(int(i)) for i in group])))
-    d = shapely.distance(hull, shapely.points(polys.centers))
-    near = np.flatnonzero(d < polys.radii + gripper.reach_radius + margin)
-    return sorted(set(int(i) for i in near) | set(int(i) for i in group))
 
 
 class _GroupSim:
@@ -255,7 +244,8 @@ class DrakeVerifier:
                     for i, body, top in group_bodies
                     if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top
                 ]
-                if left and (not cfg.early_exit_all or len(left) == len(group_bodies)):
+                k = cfg.report_partial_lifts
+                if left and (k <= 0 or len(group_bodies) - len(left) < k):
                     status["early"] = f"object(s) {left} left on the table"
                     return EventStatus.ReachedTermination(None, status["early"])
             return EventStatus.Succeeded()

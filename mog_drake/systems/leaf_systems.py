@@ -49,16 +49,23 @@ class Decision(_Immutable):
     decision: PickDecision | None = None
     objects_seen: int = 0
     recent: tuple = ()  # the last grasps issued, not to be repeated
+    failures: tuple = ()  # groups found to have no grasp (see next_pick)
 
 
 class PerceptionSystem(LeafSystem):
     """camera.rgb_image, camera.depth_image, request -> scene (a perceived Scene)."""
 
     def __init__(
-        self, camera, table, library=None, config: PerceptionConfig | None = None, period: float = 0.01
+        self,
+        camera,
+        table,
+        library=None,
+        config: PerceptionConfig | None = None,
+        period: float = 0.01,
+        ignore=(),
     ):
         super().__init__()
-        self._perceiver = Perceiver(library, config, table)
+        self._perceiver = Perceiver(library, config, table, ignore)
         self._X_WC = camera.X_WC().GetAsMatrix4()
         self._K = camera.intrinsics()
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))
@@ -96,10 +103,17 @@ class PlannerSystem(LeafSystem):
     REMEMBER = 3  # grasps not to repeat: the last three issued
 
     def __init__(
-        self, planner, mode: str = "mog", seed: int = 0, period: float = 0.01, partial_lifts: bool = True
+        self,
+        planner,
+        mode: str = "mog",
+        seed: int = 0,
+        period: float = 0.01,
+        partial_lifts: bool = True,
+        remember_failures: bool = True,
     ):
         super().__init__()
         self._planner = planner
+        self._remember = remember_failures
         self._mode = mode
         self._partial_lifts = partial_lifts
         self._rng = np.random.default_rng(seed)
@@ -119,11 +133,17 @@ class PlannerSystem(LeafSystem):
         if p.scene is None or p.counter <= cur.counter:
             return
         d = next_pick(
-            p.scene, self._planner, self._mode, self._rng, partial_lifts=self._partial_lifts, avoid=cur.recent
+            p.scene,
+            self._planner,
+            self._mode,
+            self._rng,
+            partial_lifts=self._partial_lifts,
+            avoid=cur.recent,
+            failures=cur.failures if self._remember else None,
         )
         recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
         state.get_mutable_abstract_state(self._state).set_value(
-            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :])
+            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures)
         )
 
     def _out(self, context, output) -> None:
@@ -141,6 +161,9 @@ class ControllerState(_Immutable):
     gripper: float = 0.075
     plan: dict | None = None
     attempts: list = field(default_factory=list)
+    # Grasps the arm could not reach, in order: {"t", "grasp", "reason", "planning_time"}.
+    skipped: list = field(default_factory=list)
+    unreachable: int = 0  # unreachable grasps in a row
     finished: str = ""
 
 
@@ -148,6 +171,7 @@ class ControllerSystem(LeafSystem):
     """A state machine per attempt: ask for a grasp, move above it, descend, close with the
     force limit, lift, move above the bin, open, return to the observe pose, ask again."""
 
+    MAX_UNREACHABLE = 3  # unreachable grasps in a row that end the run
     MOTIONS = {"approach": "close", "lift": "to_bin", "to_bin": "open", "home": "observe"}
 
     def __init__(
@@ -207,9 +231,23 @@ class ControllerSystem(LeafSystem):
                     try:
                         new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
                     except MogError as e:
-                        new.mode, new.finished = "done", f"unreachable grasp: {e}"
+                        # Observe again: the planner does not repeat its last few grasps.
+                        new.skipped = [
+                            *s.skipped,
+                            {
+                                "t": t,
+                                "grasp": dec.grasp.tolist(),
+                                "reason": str(e),
+                                "planning_time": dec.planning_time,
+                            },
+                        ]
+                        new.unreachable = s.unreachable + 1
+                        new.mode, new.t_mode = "observe", t
+                        if new.unreachable >= self.MAX_UNREACHABLE:
+                            new.mode = "done"
+                            new.finished = f"unreachable grasp ({new.unreachable} in a row): {e}"
                     else:
-                        new.mode, new.t_mode = "approach", t
+                        new.mode, new.t_mode, new.unreachable = "approach", t, 0
                         new.attempts.append(
                             {
                                 "start": t,

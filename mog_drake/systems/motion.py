@@ -132,6 +132,20 @@ class ArmMotion:
             raise MogError("TOPP-RA found no time parameterisation for the arm path")
         return PathParameterizedTrajectory(path, s_traj)
 
+    def bin_ik(self, position, yaw: float, seeds) -> np.ndarray:
+        """The drop pose above the bin. Its yaw is free (the objects fall either way): the
+        carry's yaw first, then turned by a quarter and a half turn, each from every seed in
+        turn, so that one seed in a poor basin of the solver does not end the attempt."""
+        for dyaw in (0.0, np.pi / 2, np.pi):
+            for q_seed in seeds:
+                try:
+                    return self.ik(position, yaw + dyaw, q_seed)
+                except MogError:
+                    continue
+        raise MogError(
+            f"no arm configuration reaches the drop pose above the bin {np.round(position, 3).tolist()}"
+        )
+
     def pick_plan(self, grasp, q_start, bin_xy, bin_height: float) -> dict:
         """Joint trajectories of one attempt: start -> above the grasp -> down -> (close) -> up
         -> above the bin -> (open) -> start. The grasp yaw is taken modulo pi, whichever turns
@@ -156,7 +170,7 @@ class ArmMotion:
         down = self.vertical(grasp[:2], z_above, z_grasp, yaw, q_above)
         up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])
         z_bin = bin_height + cfg.bin_clearance + cfg.finger_height
-        q_bin = self.ik([bin_xy[0], bin_xy[1], z_bin], yaw, up[-1])
+        q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, (up[-1], q_start))
         return {
             "approach": self.timed([q_start, q_above, *down[1:]]),
             "lift": self.timed(up, cfg.carry_scale),

@@ -18,26 +18,18 @@ from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, P
 from mog_drake.systems.motion import ArmMotion, MotionConfig
 
 
-def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
-    """Wires the application to a station by port name. Returns (diagram, parts)."""
+def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
+    """The grasp planner of ``scenario.planner``, its physics check on the scenario's contact
+    and gripper settings (``verifier`` replaces that check, e.g. in tests)."""
     from mog_drake.geometry import GripperGeometry
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
-    check_planner_spec(scenario.planner)
-    station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
-    from mog_drake.scenes import default_library
-
-    library = handles.scene.library if handles.scene is not None else default_library()
-    builder = DiagramBuilder()
-    builder.AddNamedSystem("station", station)
-    perception = builder.AddNamedSystem(
-        "perception", PerceptionSystem(scenario.camera, scenario.table, library)
-    )
-    # With partial lifts, a check that holds part of the group runs to the end to say so.
+    # With partial lifts, a check that holds two or more of the group runs to the end to say
+    # so; one lifted object is not worth the hold (a lone object's own check is as cheap).
     vcfg = VerifierConfig(
         contact=scenario.planner_contact,
         physics=scenario.gripper,
-        early_exit_all=scenario.planner.partial_lifts,
+        report_partial_lifts=2 if scenario.planner.partial_lifts else 0,
         hold_time=scenario.planner.hold_s,
     )
     # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
@@ -45,7 +37,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     vcfg.cpu_budget = default.cpu_budget * max(
         1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
     )
-    planner = GraspPlanner(
+    return GraspPlanner(
         verifier or DrakeVerifier(vcfg),
         PlannerConfig(
             method=scenario.planner.method,
@@ -58,6 +50,22 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             lone_widest_basin=scenario.planner.lone_widest_basin,
         ),
     )
+
+
+def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
+    """Wires the application to a station by port name. Returns (diagram, parts)."""
+    check_planner_spec(scenario.planner)
+    station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
+    from mog_drake.scenes import default_library
+
+    library = handles.scene.library if handles.scene is not None else default_library()
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("station", station)
+    perception = builder.AddNamedSystem(
+        "perception",
+        PerceptionSystem(scenario.camera, scenario.table, library, ignore=scenario.perception_ignore()),
+    )
+    planner = make_planner(scenario, verifier)
     planner_sys = builder.AddNamedSystem(
         "planner",
         PlannerSystem(
@@ -65,6 +73,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             scenario.planner.mode,
             scenario.planner.seed,
             partial_lifts=scenario.planner.partial_lifts,
+            remember_failures=scenario.planner.remember_failures,
         ),
     )
     motion = ArmMotion(
@@ -120,6 +129,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
 class PickRun:
     objects: int
     attempts: list[dict] = field(default_factory=list)
+    skipped: list[dict] = field(default_factory=list)  # planned grasps the arm could not reach
     in_bin: int = 0
     sim_time: float = 0.0
     wall_time: float = 0.0
@@ -133,11 +143,12 @@ class PickRun:
     def summary(self) -> dict:
         n = len(self.attempts)
         succ = [a for a in self.attempts if (a["picked"] or 0) >= 1]
-        planning = sum(a["planning_time"] for a in self.attempts)
+        planning = sum(a["planning_time"] for a in [*self.attempts, *self.skipped])
         robot_time = self.sim_time
         return {
             "objects": self.objects,
             "attempts": n,
+            "unreachable": len(self.skipped),
             "success_rate": len(succ) / n if n else float("nan"),
             "picked_pct": 100.0 * self.in_bin / self.objects if self.objects else float("nan"),
             "objects_per_success": (sum(a["picked"] for a in succ) / len(succ)) if succ else float("nan"),
@@ -285,6 +296,7 @@ def run_pick(
                 on_attempt(len(run.attempts), a)
         if s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0:
             run.finished = s.finished or "time limit"
+            run.skipped = list(s.skipped)
             break
     if meshcat is not None:
         meshcat.StopRecording()
