@@ -562,6 +562,14 @@ def cmd_bench(args) -> int:
 
         rows = bench_station(args.seed)
         _emit(args, {"station": rows}, format_table(rows))
+    elif args.what == "replanning":
+        from mog_drake.experiments.bench import bench_replanning
+        from mog_drake.progress import Progress
+
+        rows = bench_replanning(
+            args.scenes, args.seed, Progress(2 * args.scenes, "replanning", enabled=not args.json)
+        )
+        _emit(args, {"replanning": rows}, format_table(rows))
     elif args.what == "agreement":
         from mog_drake.experiments.bench import bench_agreement
         from mog_drake.progress import Progress
@@ -789,9 +797,14 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_gripper)
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
-    sp.add_argument("what", choices=["geometry", "verifier", "agreement", "perception", "station"])
     sp.add_argument(
-        "--scenes", type=int, default=20, help="scenes per class (geometry, verifier); tables (perception)"
+        "what", choices=["geometry", "verifier", "agreement", "perception", "station", "replanning"]
+    )
+    sp.add_argument(
+        "--scenes",
+        type=int,
+        default=20,
+        help="scenes per class (geometry, verifier); tables (perception, replanning)",
     )
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")

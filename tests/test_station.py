@@ -119,12 +119,12 @@ def test_ik_reaches_the_workspace_corners():
             assert np.abs(v).max() <= scale * sc.robot.max_joint_speed * 1.02
 
 
-def test_controller_state_machine_with_fixed_inputs():
-    """Fed a fixed decision, the controller asks, moves, closes, lifts, goes to the bin, opens
-    and returns, then asks again."""
+def _controller_with_fixed_inputs():
+    """A ControllerSystem alone: the arm at home, the jaws at 30 mm, a decision to set.
+    Returns (controller, context, decision input value, simulator)."""
     from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
 
-    from mog_drake.planning.picking import PickDecision
     from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.leaf_systems import ControllerSystem, Decision
     from mog_drake.systems.motion import ArmMotion
@@ -136,9 +136,16 @@ def test_controller_state_machine_with_fixed_inputs():
     c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
     c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
     decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
-    from pydrake.systems.analysis import Simulator
+    return c, ctx, decision, Simulator(c, ctx)
 
-    sim = Simulator(c, ctx)
+
+def test_controller_state_machine_with_fixed_inputs():
+    """Fed a fixed decision, the controller asks, moves, closes, lifts, goes to the bin, opens
+    and returns, then asks again."""
+    from mog_drake.planning.picking import PickDecision
+    from mog_drake.systems.leaf_systems import Decision
+
+    c, ctx, decision, sim = _controller_with_fixed_inputs()
     modes, grippers = [], []
     sim.AdvanceTo(0.5)
     assert c.state(ctx).mode == "wait" and c.GetOutputPort("request").Eval(ctx)[0] == 1
@@ -163,22 +170,10 @@ def test_controller_state_machine_with_fixed_inputs():
 def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():
     """A grasp the arm cannot reach is recorded and the controller observes again (the planner
     will not repeat it); only three unreachable grasps in a row end the run."""
-    from pydrake.common.value import AbstractValue
-    from pydrake.systems.analysis import Simulator
-
     from mog_drake.planning.picking import PickDecision
-    from mog_drake.station import FLANGE_TO_PALM
-    from mog_drake.systems.leaf_systems import ControllerSystem, Decision
-    from mog_drake.systems.motion import ArmMotion
+    from mog_drake.systems.leaf_systems import Decision
 
-    sc = Scenario()
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
-    c = ControllerSystem(m, sc.robot.home, sc.bin.center, sc.bin.depth)
-    ctx = c.CreateDefaultContext()
-    c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
-    c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
-    decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
-    sim = Simulator(c, ctx)
+    c, ctx, decision, sim = _controller_with_fixed_inputs()
     sim.AdvanceTo(0.5)
     far = np.array([3.0, 0.0, 0.0])  # three metres from the base: out of the UR5's reach
     for k in (1, 2, 3):

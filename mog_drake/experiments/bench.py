@@ -280,3 +280,58 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     retire.update(pc)
     rows.append(cost(state="piled, then retired"))
     return rows
+
+
+def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict]:
+    """Planning time of one table's decisions, replayed without the robot: on each seeded
+    isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
+    physics check lifted, plan again until the table is empty. "before": every group planned
+    afresh before each decision and every partial lift reported; "after": the picking
+    defaults (failed groups remembered, partial lifts of two or more)."""
+    from dataclasses import replace
+
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.station import Scenario, SceneSpec, scene_from_spec
+    from mog_drake.systems.pick import make_planner
+
+    rows, done = [], 0
+    for k in range(tables):
+        table_seed = seed * 1_000_000 + k
+        for setting in ("before", "after"):
+            planner = make_planner(Scenario())
+            if setting == "before":
+                planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
+            scene = scene_from_spec(SceneSpec(kind="cluttered", seed=table_seed))
+            rng, failures = np.random.default_rng(table_seed), () if setting == "after" else None
+            n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
+            while len(scene) and decisions < 3 * n0:
+                d = next_pick(scene, planner, "mog", rng, failures=failures)
+                failures = d.failures if failures is not None else None
+                decisions += 1
+                checks += d.physics_checks
+                remembered += d.remembered
+                planning += d.planning_time
+                if d.status != "grasp":
+                    break
+                gone = set(d.expected) or set(d.group)
+                scene = Scene(
+                    [o for i, o in enumerate(scene.objects) if i not in gone], scene.library, scene.table
+                )
+            rows.append(
+                {
+                    "table_seed": table_seed,
+                    "setting": setting,
+                    "decisions": decisions,
+                    "objects_left": len(scene),
+                    "physics_checks": checks,
+                    "groups_remembered": remembered,
+                    "planning_s": round(planning, 1),
+                    "per_decision_s": round(planning / max(decisions, 1), 2),
+                }
+            )
+            done += 1
+            if progress:
+                progress(done, 2 * tables)
+    return rows
