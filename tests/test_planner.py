@@ -352,6 +352,15 @@ def test_a_failed_group_is_not_planned_again_while_its_surroundings_are_unchange
     d4 = next_pick(crowded, planner, failures=d1.failures)
     assert d4.remembered == 0 and v.asked[:2] == [(0, 1, 2)] * 2
 
+    # Several failures remembered: the one that matches is replayed, the others kept.
+    elsewhere = [(name, x + 0.2, y + 0.1, th) for name, x, y, th in bars]  # also ids (0, 1, 2)
+    other = next_pick(make_scene(elsewhere), planner, failures=())
+    assert [f.group for f in other.failures] == [(0, 1, 2)]
+    v.asked.clear()
+    d6 = next_pick(make_scene(bars[::-1]), planner, failures=other.failures + d1.failures)
+    assert v.asked == [] and d6.remembered == 1 and len(d6.failures) == 2
+    assert d6.failures[1] is other.failures[0]
+
     # Off (failures=None), as in the paper's Alg. 1: nothing remembered.
     v.asked.clear()
     d5 = next_pick(make_scene(bars[::-1]), planner)

@@ -30,7 +30,7 @@ MEMORY_REACH_MARGIN = 0.03  # m around the gripper's reach (the physics check us
 MEMORY_SIZE = 64
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # compared by identity (it holds arrays)
 class FailedGroup:
     """A group the planner found no grasp for, with what the physics check saw. ``around``
     holds (id, shape, vertices) of every object within reach of the group then: the check's
@@ -172,12 +172,12 @@ def next_pick(
         res = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            for f in pending:
+            for k, f in enumerate(pending):
                 if len(f.group) == len(group) and (ids := _match(f.around, around)) is not None:
                     if set(ids[i] for i in f.group) == set(group):
                         res = _replay(f, ids, group, avoid)
                         decision.remembered += 1
-                        pending.remove(f)
+                        del pending[k]
                         break
         if res is None:
             res = planner.plan(scene, group, rng=rng, avoid=avoid)
