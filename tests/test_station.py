@@ -101,6 +101,11 @@ def test_ik_reaches_the_workspace_corners():
         (0.15, 0.15, 2.0),
         (-0.15, 0.15, 3.0),
         (0, 0, 0.5),
+        # The table's far corners: the camera sees the whole table, so objects pushed there
+        # are planned for.
+        (0.29, 0.29, 0.8),
+        (0.29, -0.29, 2.4),
+        (-0.29, -0.29, 1.6),
     ]:
         plan = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)
         q = plan["approach"].value(plan["approach"].end_time()).ravel()
