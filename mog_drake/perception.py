@@ -116,6 +116,12 @@ def _clusters(pts: np.ndarray, link: float) -> list[np.ndarray]:
     return [np.array(sorted(v)) for v in groups.values()]
 
 
+def _inside(P: np.ndarray, rect) -> np.ndarray:
+    """Which points of P (..., 3) lie strictly inside rect (xmin, xmax, ymin, ymax) in x, y."""
+    x0, x1, y0, y1 = rect
+    return (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
+
+
 class Perceiver:
     """Turns (rgb, depth, camera) into a perceived Scene."""
 
@@ -156,12 +162,9 @@ class Perceiver:
         cfg = self.config
         fx, fy, cx, cy = intrinsics
         P = backproject(np.asarray(depth, float).reshape(rgb.shape[:2]), np.asarray(X_WC), fx, fy, cx, cy)
-        x0, x1, y0, y1 = self.table
-        ok = (
-            np.isfinite(P[..., 2]) & (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
-        )
-        for rx0, rx1, ry0, ry1 in self.ignore:
-            ok &= ~((P[..., 0] > rx0) & (P[..., 0] < rx1) & (P[..., 1] > ry0) & (P[..., 1] < ry1))
+        ok = np.isfinite(P[..., 2]) & _inside(P, self.table)
+        for r in self.ignore:
+            ok &= ~_inside(P, r)
         obj = ok & (P[..., 2] > cfg.min_height) & (P[..., 2] < cfg.max_height)
         table = ok & (P[..., 2] <= cfg.min_height)
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.
