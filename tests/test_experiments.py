@@ -23,6 +23,29 @@ def test_sweep_resumes_without_redoing_finished_tasks(tmp_path):
     assert [r["value"] for r in out] == [0, 1, 4, 9]
 
 
+def _worker_failing_on_t1(task):
+    if task["key"] == "t1":
+        raise ValueError("bad table")
+    return {"key": task["key"], "value": task["n"]}
+
+
+def _worker_ok(task):
+    return {"key": task["key"], "value": task["n"]}
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_failing_task_does_not_stop_the_others_and_is_retried(tmp_path, jobs):
+    tasks = [{"key": f"t{i}", "n": i} for i in range(4)]
+    with pytest.raises(MogError, match=r"1 of 4 sweep tasks failed \(first: t1: ValueError: bad table\)"):
+        run_sweep(tasks, _worker_failing_on_t1, tmp_path, jobs=jobs, progress=False)
+    assert set(load_results(tmp_path / "results.jsonl")) == {"t0", "t2", "t3"}
+    (failure,) = [json.loads(line) for line in (tmp_path / "failures.jsonl").read_text().splitlines()]
+    assert failure["key"] == "t1" and "raise ValueError" in failure["traceback"]
+    out = run_sweep(tasks, _worker_ok, tmp_path, jobs=jobs, progress=False)  # retries t1 only
+    assert [r["value"] for r in out] == [0, 1, 2, 3]
+    assert len((tmp_path / "results.jsonl").read_text().splitlines()) == 4
+
+
 def test_torn_last_line_is_dropped(tmp_path):
     path = tmp_path / "results.jsonl"
     path.write_text(json.dumps({"key": "a", "v": 1}) + "\n" + '{"key": "b", "v"')

@@ -3,13 +3,19 @@
 An interrupted sweep (Ctrl-C, a killed machine) resumes where it stopped: finished tasks are
 read back from ``results.jsonl`` and skipped; a torn last line is dropped. ``jobs`` runs tasks
 in parallel processes on this machine; ``ray_address`` sends them to an existing Ray cluster.
+
+A task that raises does not stop the others: its error and traceback are appended to
+``failures.jsonl``, the remaining tasks run, and the sweep then raises one ``MogError`` naming
+the failed tasks. They have no result, so the next run of the same command retries them.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
+import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -75,7 +81,8 @@ def run_sweep(
     progress: bool = True,
 ) -> list[dict]:
     """Runs ``worker(task)`` for every task whose ``key`` has no result yet; returns all
-    results in task order. ``worker`` must be a module-level function (it is pickled)."""
+    results in task order. ``worker`` must be a module-level function (it is pickled).
+    Raises ``MogError`` after the last task if any task raised (see the module's docstring)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "results.jsonl"
@@ -83,17 +90,54 @@ def run_sweep(
     todo = [] if _SUMMARY_ONLY else [t for t in tasks if t["key"] not in done]
     bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
     bar.update(len(tasks) - len(todo))
+    failed: list[dict] = []
     try:
         with open(path, "a") as f:
             for rec in _execute(todo, worker, jobs, ray_address):
-                f.write(json.dumps(rec) + "\n")
-                f.flush()
-                os.fsync(f.fileno())
-                done[rec["key"]] = rec
+                if _FAILED in rec:
+                    failed.append(rec)
+                    _append_line(out_dir / "failures.jsonl", rec)
+                else:
+                    _write_line(f, rec)
+                    done[rec["key"]] = rec
                 bar.step()
     finally:
         bar.close()
+    if failed:
+        first = failed[0]
+        raise MogError(
+            f"{len(failed)} of {len(todo)} {label} tasks failed (first: {first['key']}: "
+            f"{first[_FAILED]}); tracebacks in {out_dir / 'failures.jsonl'}; the other results "
+            "are kept and running the same command again retries the failed tasks"
+        )
     return [done[t["key"]] for t in tasks if t["key"] in done]
+
+
+_FAILED = "sweep_error"
+
+
+def _guarded(worker: Callable[[dict], dict], task: dict) -> dict:
+    """``worker(task)``, or a failure record if it raised (in the worker's own process, so the
+    traceback survives pickling)."""
+    try:
+        return worker(task)
+    except Exception as e:
+        return {
+            "key": task["key"],
+            _FAILED: f"{type(e).__name__}: {e}".splitlines()[0],
+            "traceback": traceback.format_exc(),
+        }
+
+
+def _write_line(f, rec: dict) -> None:
+    f.write(json.dumps(rec) + "\n")
+    f.flush()
+    os.fsync(f.fileno())
+
+
+def _append_line(path: Path, rec: dict) -> None:
+    with open(path, "a") as f:
+        _write_line(f, rec)
 
 
 def _execute(tasks: list[dict], worker, jobs: int, ray_address: str | None):
@@ -103,13 +147,13 @@ def _execute(tasks: list[dict], worker, jobs: int, ray_address: str | None):
         yield from _execute_ray(tasks, worker, ray_address)
     elif jobs <= 1:
         for t in tasks:
-            yield worker(t)
+            yield _guarded(worker, t)
     else:
         import multiprocessing as mp
 
         # spawn: fresh interpreters, nothing of the parent's Drake state is shared.
         with mp.get_context("spawn").Pool(jobs) as pool:
-            yield from pool.imap_unordered(worker, tasks, chunksize=1)
+            yield from pool.imap_unordered(functools.partial(_guarded, worker), tasks, chunksize=1)
 
 
 def _execute_ray(tasks: list[dict], worker, address: str):
@@ -118,8 +162,8 @@ def _execute_ray(tasks: list[dict], worker, address: str):
     except ImportError:
         raise MogError("--ray needs Ray: pip install 'mog_drake[ray]'") from None
     ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
-    remote = ray.remote(worker)
-    pending = [remote.remote(t) for t in tasks]
+    remote = ray.remote(_guarded)
+    pending = [remote.remote(worker, t) for t in tasks]
     while pending:
         ready, pending = ray.wait(pending, num_returns=1)
         yield ray.get(ready[0])
