@@ -334,8 +334,23 @@ def _cmd_eval(args) -> int:
         modes = [m.strip() for m in args.modes.split(",") if m.strip()]
         if not modes or any(m not in ("mog", "sog") for m in modes):
             raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
+        scenario = ""
+        if args.scenario:
+            from mog_drake.station import load_scenario
+
+            load_scenario(args.scenario)  # refuses a bad file before anything runs
+            scenario = Path(args.scenario).read_text()
         summary, _ = picking_eval.run(
-            args.scenes, modes, args.seed, out, args.objects, args.time_limit, jobs, args.ray, progress
+            args.scenes,
+            modes,
+            args.seed,
+            out,
+            args.objects,
+            args.time_limit,
+            jobs,
+            args.ray,
+            progress,
+            scenario=scenario,
         )
         png = figures.picking_figure(summary, out / "picking.png")
         text = format_table(summary["rows"], picking_eval.COLUMNS)
@@ -755,6 +770,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--objects", type=int, default=33, help="objects per table (the isrr33 inventory)")
     sp.add_argument("--time-limit", type=float, default=900.0, help="simulated robot seconds per table")
     sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument(
+        "--scenario",
+        help="scenario YAML whose settings every run uses (its scene, time limit, mode and seed are set by the sweep)",
+    )
     sp.add_argument("--out", required=True)
     sp.add_argument("--jobs", type=int)
     sp.add_argument("--ray", metavar="ADDRESS")

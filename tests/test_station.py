@@ -322,6 +322,40 @@ def test_tiny_picking_evaluation(tmp_path):
     assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
 
 
+def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys):
+    from mog_drake.cli import main
+    from mog_drake.errors import MogError
+    from mog_drake.experiments import picking_eval
+    from mog_drake.experiments.sweep import summary_only
+
+    text = "planner:\n  group_radius: 0.045\n  hold_s: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
+    (task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0, scenario=text)
+    sc = picking_eval.task_scenario(task)
+    assert (sc.planner.group_radius, sc.planner.hold_s, sc.robot.max_joint_speed) == (0.045, 1.5, 2.0)
+    assert (sc.planner.mode, sc.planner.seed, sc.scene.seed, sc.scene.n_objects) == (
+        "sog",
+        4_000_000,
+        4_000_000,
+        5,
+    )
+    assert (sc.scene.kind, sc.time_limit) == ("cluttered", 60.0)
+    (default_task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0)
+    assert (
+        "scenario" not in default_task
+        and picking_eval.task_scenario(default_task).planner.group_radius == 0.035
+    )
+
+    with summary_only():
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
+        with pytest.raises(MogError, match="holds a sweep with scenario="):
+            picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("planner:\n  group_radius: -1\n")
+    assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "group_radius must be in" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()  # refused before anything was written
+
+
 def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
     """A bar knocked onto its side is the same box lying down: perception names it
     `thin_bar:on_side` (not an unrecognised blob), even pressed against upright objects."""
@@ -362,6 +396,9 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
         load_scenario(str(f))
     f.write_text("planner:\n  hold_s: 0\n")
     with pytest.raises(MogError, match="hold_s must be in"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  group_radius: 35\n")  # millimetres by mistake
+    with pytest.raises(MogError, match="group_radius must be in .* got 35"):
         load_scenario(str(f))
 
 

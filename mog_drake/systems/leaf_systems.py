@@ -20,6 +20,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS
 from mog_drake.perception import Perceiver, PerceptionConfig
 from mog_drake.planning.picking import PickDecision, next_pick
 
@@ -110,9 +111,11 @@ class PlannerSystem(LeafSystem):
         period: float = 0.01,
         partial_lifts: bool = True,
         remember_failures: bool = True,
+        group_radius: float = DEFAULT_GROUP_RADIUS,
     ):
         super().__init__()
         self._planner = planner
+        self._group_radius = group_radius
         self._remember = remember_failures
         self._mode = mode
         self._partial_lifts = partial_lifts
@@ -140,6 +143,7 @@ class PlannerSystem(LeafSystem):
             partial_lifts=self._partial_lifts,
             avoid=cur.recent,
             failures=cur.failures if self._remember else None,
+            group_radius=self._group_radius,
         )
         recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
         state.get_mutable_abstract_state(self._state).set_value(
