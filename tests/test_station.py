@@ -1,5 +1,6 @@
 """The station's port contract, perception on rendered tables, the controller and the arm."""
 
+import json
 import math
 
 import numpy as np
@@ -322,7 +323,7 @@ def test_tiny_picking_evaluation(tmp_path):
     assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
 
 
-def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys):
+def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys, monkeypatch):
     from mog_drake.cli import main
     from mog_drake.errors import MogError
     from mog_drake.experiments import picking_eval
@@ -345,8 +346,19 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
         and picking_eval.task_scenario(default_task).planner.group_radius == 0.035
     )
 
+    from mog_drake.systems import pick
+
+    seen = []
+    monkeypatch.setattr(
+        pick, "run_pick", lambda sc: seen.append(sc) or pick.PickRun(objects=5, shapes=["cube"] * 5)
+    )
+    record = picking_eval.picking_worker(task)
+    assert seen[0].planner.group_radius == 0.045 and record["summary"]["objects"] == 5
+    assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
+
     with summary_only():
         picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
+        assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
         with pytest.raises(MogError, match="holds a sweep with scenario="):
             picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
     bad = tmp_path / "bad.yaml"
