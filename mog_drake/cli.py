@@ -456,7 +456,12 @@ def cmd_pick(args) -> int:
     def line(k, a):
         if not args.json:
             print(
-                f"attempt {k:3d}  group {a['group']}  "
+                f"attempt {k:3d}  "
+                + (
+                    f"unrecognised blob(s) {a['group']}  "
+                    if a.get("unrecognised")
+                    else f"group {a['group']}  "
+                )
                 + (f"expected {len(a['expected'])}  " if a.get("expected") else "")
                 + (f"lifted {len(a['carried'])}  " if a.get("carried") is not None else "")
                 + f"picked {a['picked']}  in bin {a['in_bin']}  "

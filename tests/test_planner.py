@@ -154,6 +154,35 @@ def test_unrecognised_blobs_are_not_a_clear_table():
     assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"
 
 
+def test_unrecognised_blobs_left_alone_are_planned_as_prisms_of_their_outline():
+    from mog_drake.planning.picking import next_pick, unrecognised_scene
+    from mog_drake.scenes import Scene
+
+    c, s = math.cos(0.5), math.sin(0.5)
+    rect = np.array([[-0.01, -0.0175], [0.01, -0.0175], [0.01, 0.0175], [-0.01, 0.0175]]) @ [[c, s], [-s, c]]
+    blobs = [
+        {"vertices": (rect + [0.05, 0.02]).tolist(), "top": 0.035},
+        {"vertices": [[0.0, 0.0], [0.01, 0.0], [0.02, 0.0]], "top": 0.01},  # no area: dropped
+    ]
+    empty = Scene([], make_scene([]).library, meta={"unrecognised_blobs": 2, "unrecognised": blobs})
+    as_prisms = unrecognised_scene(empty)
+    assert len(as_prisms) == 1 and as_prisms.shape(0).height == 0.035
+    assert np.allclose(sorted(map(tuple, as_prisms.polygon(0))), sorted(map(tuple, rect + [0.05, 0.02])))
+    assert "unrecognised" not in " ".join(empty.library.shapes)  # the perceived library is untouched
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append((scene.shape(group[0]).height, tuple(group)))
+            return GraspResult(True, lifted=list(group))
+
+    v = LiftsAnything()
+    d = next_pick(empty, GraspPlanner(v))
+    assert d.status == "grasp" and d.unrecognised and d.group == (0,) and v.asked[0] == (0.035, (0,))
+    assert np.linalg.norm(d.grasp[:2] - [0.05, 0.02]) < 0.02
+    assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"  # nothing lifts
+    assert next_pick(empty, GraspPlanner(v), grasp_unrecognised=False).status == "unrecognised"
+
+
 def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     """Three bars in a row: physics never lifts all three, but one candidate lifts two.
     With partial lifts that verified pair is the grasp (no pair or single is planned);

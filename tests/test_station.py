@@ -368,6 +368,66 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     assert not (tmp_path / "x").exists()  # refused before anything was written
 
 
+def test_what_perception_cannot_recognise_is_outlined_and_grasped(tmp_path):
+    """A shape perception does not know (here the trapezoid: it looks for pentagons only) is
+    an unrecognised blob with its outline and top height; once nothing recognised is left,
+    the planner grasps it as a prism of that outline, verified in physics like any grasp."""
+    import shapely
+    from conftest import make_scene
+
+    from mog_drake.perception import Perceiver, PerceptionConfig
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+    from mog_drake.systems.pick import make_planner
+
+    truth = make_scene([("green_trapezoid", 0.05, -0.04, 0.4), ("blue_pentagon", -0.08, 0.06, 0.0)])
+    truth.save(tmp_path / "unknown.yaml")
+    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "unknown.yaml")))
+    d, _ = MakeStation(sc)
+    rgb, depth = render_still(sc, d)
+    perceiver = Perceiver(
+        table=sc.table, ignore=sc.perception_ignore(), config=PerceptionConfig(shapes=("blue_pentagon",))
+    )
+    seen = perceiver.perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    assert [o.shape for o in seen.objects] == ["blue_pentagon"]
+    (blob,) = seen.meta["unrecognised"]
+    true, got = shapely.Polygon(truth.polygon(0)), shapely.Polygon(blob["vertices"])
+    assert got.intersection(true).area / got.union(true).area > 0.85
+    assert abs(blob["top"] - truth.shape(0).height) < 0.003
+
+    left = Scene([], seen.library, table=seen.table, meta=seen.meta)  # the pentagon was picked
+    decision = next_pick(left, make_planner(sc), "mog")
+    assert decision.status == "grasp" and decision.unrecognised and decision.expected == (0,)
+    assert shapely.Polygon(truth.polygon(0)).distance(shapely.Point(decision.grasp[:2])) < 0.005
+
+
+def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.planning.planner import GraspPlanner
+    from mog_drake.planning.protocol import GraspResult
+    from mog_drake.scenes import Scene, default_library
+    from mog_drake.systems.leaf_systems import Perceived, PlannerSystem
+
+    class LiftsAnything:  # a grasp always exists: only the planner system's count ends it
+        def check(self, scene, group, grasp):
+            return GraspResult(True, lifted=list(group))
+
+    blob = {"vertices": [[0.0, 0.0], [0.02, 0.0], [0.02, 0.035], [0.0, 0.035]], "top": 0.03}
+    p = PlannerSystem(GraspPlanner(LiftsAnything()), "mog")
+    ctx = p.CreateDefaultContext()
+    sim = Simulator(p, ctx)
+    seen = []
+    for k in range(5):
+        scene = Scene([], default_library(), meta={"unrecognised_blobs": 1, "unrecognised": [blob]})
+        p.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(k, scene)))
+        sim.AdvanceTo(ctx.get_time() + 0.02)
+        d = p.GetOutputPort("decision").Eval(ctx).decision
+        seen.append((d.status, d.unrecognised))
+    assert seen == [("grasp", True)] * 3 + [("unrecognised", False)] * 2
+
+
 def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
     """A bar knocked onto its side is the same box lying down: perception names it
     `thin_bar:on_side` (not an unrecognised blob), even pressed against upright objects."""

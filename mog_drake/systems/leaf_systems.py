@@ -51,6 +51,7 @@ class Decision(_Immutable):
     objects_seen: int = 0
     recent: tuple = ()  # the last grasps issued, not to be repeated
     failures: tuple = ()  # groups found to have no grasp (see next_pick)
+    unrecognised_grasps: int = 0  # grasps of unrecognised blobs issued in a row
 
 
 class PerceptionSystem(LeafSystem):
@@ -102,6 +103,9 @@ class PlannerSystem(LeafSystem):
     """scene -> decision: Alg. 1 (mog) or the single-object baseline (sog) once per new scene."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
+    # Grasps of unrecognised blobs in a row before the run ends on them: each failed one moves
+    # the blob, so the planner would otherwise try a new outline until the time limit.
+    MAX_UNRECOGNISED_GRASPS = 3
 
     def __init__(
         self,
@@ -144,10 +148,15 @@ class PlannerSystem(LeafSystem):
             avoid=cur.recent,
             failures=cur.failures if self._remember else None,
             group_radius=self._group_radius,
+            grasp_unrecognised=cur.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
         )
         recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
+        if d.status == "grasp":
+            blob_grasps = cur.unrecognised_grasps + 1 if d.unrecognised else 0
+        else:  # a clear table, or given up: the count stands
+            blob_grasps = cur.unrecognised_grasps
         state.get_mutable_abstract_state(self._state).set_value(
-            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures)
+            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures, blob_grasps)
         )
 
     def _out(self, context, output) -> None:
@@ -261,6 +270,7 @@ class ControllerSystem(LeafSystem):
                                 "objects_seen": d.objects_seen,
                                 "physics_checks": dec.physics_checks,
                                 "expected": list(dec.expected),
+                                **({"unrecognised": True} if dec.unrecognised else {}),
                             }
                         )
         elif s.mode in self.MOTIONS:
