@@ -355,6 +355,7 @@ def _cmd_eval(args) -> int:
         png = figures.picking_figure(summary, out / "picking.png")
         text = format_table(summary["rows"], picking_eval.COLUMNS)
         text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
+        text += "\n" + picking_eval.losses_text(summary)
         import json as _json
 
         (out / "summary.json").write_text(_json.dumps(summary, indent=2))

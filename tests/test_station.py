@@ -321,6 +321,13 @@ def test_tiny_picking_evaluation(tmp_path):
             assert k in r
     assert summary["pph_ratio_mog_over_sog"] > 0
     assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
+    for r, res in zip(
+        sorted(summary["rows"], key=lambda r: r["mode"]), sorted(results, key=lambda r: r["mode"])
+    ):
+        assert sum(r["finished"].values()) == r["scenes"] == 1 and res["summary"]["finished"] in r["finished"]
+        left = r["left_in_view"] + r["left_out_of_view"] + r["left_off_table"]
+        assert left == len(res["left"]) == round(3 * (1 - res["summary"]["picked_pct"] / 100))
+    assert picking_eval.losses_text(summary).count("runs ended:") == 2
 
 
 def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys, monkeypatch):

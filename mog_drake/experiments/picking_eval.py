@@ -4,6 +4,7 @@ cluttered tables, with 95 % confidence intervals."""
 from __future__ import annotations
 
 import hashlib
+from collections import Counter
 
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
@@ -98,6 +99,10 @@ def summarize(results: list[dict], modes) -> dict:
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))
         row["paper_pph"] = paper.get("pph", float("nan"))
+        # Where the objects not picked ended, and why the runs stopped.
+        for where in ("in_view", "out_of_view", "off_table"):
+            row[f"left_{where}"] = sum(r.get(f"left_{where}", 0) for r in rs)
+        row["finished"] = dict(Counter(r.get("finished", "") for r in rs).most_common())
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if pph.get("sog") else float("nan")
@@ -140,3 +145,16 @@ def run(
         progress,
     )
     return summarize(results, modes), results
+
+
+def losses_text(summary: dict) -> str:
+    """One line per mode: where the objects not picked ended and how the runs ended."""
+    lines = []
+    for r in summary["rows"]:
+        ends = ", ".join(f"{n} {why}" for why, n in r.get("finished", {}).items())
+        lines.append(
+            f"{r['mode']}: objects left {r.get('left_in_view', 0)} in view, "
+            f"{r.get('left_out_of_view', 0)} out of view, {r.get('left_off_table', 0)} off the table; "
+            f"runs ended: {ends}"
+        )
+    return "\n".join(lines)
