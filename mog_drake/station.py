@@ -178,6 +178,9 @@ class PlannerSpec:
     # CreateObjGroups' radius (m): objects whose centres lie this close to one object's centre
     # form its group. The authors' robot used 35 mm, a little under half its 75 mm stroke.
     group_radius: float = 0.035
+    # Before the run ends on "no grasp found", plan every group again with up to 12 more
+    # physics checks each, 48 in all (an extension).
+    last_resort: bool = True
 
 
 @dataclass

@@ -116,10 +116,12 @@ class PlannerSystem(LeafSystem):
         partial_lifts: bool = True,
         remember_failures: bool = True,
         group_radius: float = DEFAULT_GROUP_RADIUS,
+        last_resort: bool = True,
     ):
         super().__init__()
         self._planner = planner
         self._group_radius = group_radius
+        self._last_resort = last_resort
         self._remember = remember_failures
         self._mode = mode
         self._partial_lifts = partial_lifts
@@ -149,6 +151,7 @@ class PlannerSystem(LeafSystem):
             failures=cur.failures if self._remember else None,
             group_radius=self._group_radius,
             grasp_unrecognised=cur.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
+            last_resort=self._last_resort,
         )
         recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
         if d.status == "grasp":

@@ -75,6 +75,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             partial_lifts=scenario.planner.partial_lifts,
             remember_failures=scenario.planner.remember_failures,
             group_radius=scenario.planner.group_radius,
+            last_resort=scenario.planner.last_resort,
         ),
     )
     motion = ArmMotion(
