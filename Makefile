@@ -20,8 +20,8 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check mog_drake tests
-	$(BIN)/ruff format --check mog_drake tests
+	$(BIN)/ruff check mog_drake tests notebooks
+	$(BIN)/ruff format --check mog_drake tests notebooks
 
 bench: $(STAMP)
 	$(BIN)/mog-drake bench geometry

@@ -334,12 +334,28 @@ def _cmd_eval(args) -> int:
         modes = [m.strip() for m in args.modes.split(",") if m.strip()]
         if not modes or any(m not in ("mog", "sog") for m in modes):
             raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
+        scenario = ""
+        if args.scenario:
+            from mog_drake.station import load_scenario
+
+            load_scenario(args.scenario)  # refuses a bad file before anything runs
+            scenario = Path(args.scenario).read_text()
         summary, _ = picking_eval.run(
-            args.scenes, modes, args.seed, out, args.objects, args.time_limit, jobs, args.ray, progress
+            args.scenes,
+            modes,
+            args.seed,
+            out,
+            args.objects,
+            args.time_limit,
+            jobs,
+            args.ray,
+            progress,
+            scenario=scenario,
         )
         png = figures.picking_figure(summary, out / "picking.png")
         text = format_table(summary["rows"], picking_eval.COLUMNS)
         text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
+        text += "\n" + picking_eval.losses_text(summary)
         import json as _json
 
         (out / "summary.json").write_text(_json.dumps(summary, indent=2))
@@ -441,7 +457,12 @@ def cmd_pick(args) -> int:
     def line(k, a):
         if not args.json:
             print(
-                f"attempt {k:3d}  group {a['group']}  "
+                f"attempt {k:3d}  "
+                + (
+                    f"unrecognised blob(s) {a['group']}  "
+                    if a.get("unrecognised")
+                    else f"group {a['group']}  "
+                )
                 + (f"expected {len(a['expected'])}  " if a.get("expected") else "")
                 + (f"lifted {len(a['carried'])}  " if a.get("carried") is not None else "")
                 + f"picked {a['picked']}  in bin {a['in_bin']}  "
@@ -755,6 +776,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--objects", type=int, default=33, help="objects per table (the isrr33 inventory)")
     sp.add_argument("--time-limit", type=float, default=900.0, help="simulated robot seconds per table")
     sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument(
+        "--scenario",
+        help="scenario YAML whose settings every run uses (its scene, time limit, mode and seed are set by the sweep)",
+    )
     sp.add_argument("--out", required=True)
     sp.add_argument("--jobs", type=int)
     sp.add_argument("--ray", metavar="ADDRESS")

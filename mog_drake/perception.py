@@ -11,7 +11,10 @@
    several starts (k-means centres; angles over the shape's symmetry), refined by a shrinking
    coordinate search. Fitted points then count as negatives for the next instance.
 
-Pure numpy: no Drake import (the Perception LeafSystem wraps this).
+Object points no fitted polygon explains are reported as unrecognised blobs, each with its
+outline and top height (``scene.meta["unrecognised"]``).
+
+Pure numpy and shapely: no Drake import (the Perception LeafSystem wraps this).
 """
 
 from __future__ import annotations
@@ -20,9 +23,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 
 from mog_drake.errors import MogError
-from mog_drake.geometry.polygon import polygon_centroid, transform
+from mog_drake.geometry.polygon import convex_hull_ccw, polygon_centroid, transform
 from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 
 
@@ -116,6 +120,14 @@ def _clusters(pts: np.ndarray, link: float) -> list[np.ndarray]:
     return [np.array(sorted(v)) for v in groups.values()]
 
 
+def _outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
+    """Convex hull (CCW) of 2-D points, simplified to ``tol``; None if it has no area."""
+    hull = shapely.convex_hull(shapely.MultiPoint(pts)).simplify(tol)
+    if not isinstance(hull, shapely.Polygon) or hull.area <= tol**2:
+        return None
+    return convex_hull_ccw(np.asarray(hull.exterior.coords)[:-1])
+
+
 def _inside(P: np.ndarray, rect) -> np.ndarray:
     """Which points of P (..., 3) lie strictly inside rect (xmin, xmax, ymin, ymax) in x, y."""
     x0, x1, y0, y1 = rect
@@ -204,14 +216,18 @@ class Perceiver:
         for o in found:
             poly = transform(self.library[o.shape].vertices, o.x, o.y, o.theta)
             covered |= _signed_distance(pts, poly) < cfg.wall_margin  # tops and the side walls around them
-        unknown = [
-            c
-            for c in _clusters(pts[~covered], 0.0025)
-            if w[np.flatnonzero(~covered)[c]].sum() > cfg.unknown_area
-        ]
+        rest = np.flatnonzero(~covered)
+        unknown = [rest[c] for c in _clusters(pts[rest], 0.0025) if w[rest[c]].sum() > cfg.unknown_area]
         found, moved = separate_overlaps(found, self.library)
         scene = Scene(found, self.library, table=tuple(self.table))
         scene.meta["unrecognised_blobs"] = len(unknown)
+        # Each blob's outline seen from above (the convex hull of its points, simplified to
+        # 1 mm) and the height of its top: enough to plan a grasp of it as a prism.
+        scene.meta["unrecognised"] = [
+            {"vertices": outline.round(5).tolist(), "top": round(float(np.percentile(z[idx], 95)), 5)}
+            for idx in unknown
+            if (outline := _outline(pts[idx])) is not None
+        ]
         scene.meta["overlap_corrections"] = moved
         return scene
 

@@ -154,6 +154,68 @@ def test_unrecognised_blobs_are_not_a_clear_table():
     assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"
 
 
+def test_unrecognised_blobs_left_alone_are_planned_as_prisms_of_their_outline():
+    from mog_drake.planning.picking import next_pick, unrecognised_scene
+    from mog_drake.scenes import Scene
+
+    c, s = math.cos(0.5), math.sin(0.5)
+    rect = np.array([[-0.01, -0.0175], [0.01, -0.0175], [0.01, 0.0175], [-0.01, 0.0175]]) @ [[c, s], [-s, c]]
+    blobs = [
+        {"vertices": (rect + [0.05, 0.02]).tolist(), "top": 0.035},
+        {"vertices": [[0.0, 0.0], [0.01, 0.0], [0.02, 0.0]], "top": 0.01},  # no area: dropped
+    ]
+    empty = Scene([], make_scene([]).library, meta={"unrecognised_blobs": 2, "unrecognised": blobs})
+    as_prisms = unrecognised_scene(empty)
+    assert len(as_prisms) == 1 and as_prisms.shape(0).height == 0.035
+    assert np.allclose(sorted(map(tuple, as_prisms.polygon(0))), sorted(map(tuple, rect + [0.05, 0.02])))
+    assert "unrecognised" not in " ".join(empty.library.shapes)  # the perceived library is untouched
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append((scene.shape(group[0]).height, tuple(group)))
+            return GraspResult(True, lifted=list(group))
+
+    v = LiftsAnything()
+    d = next_pick(empty, GraspPlanner(v))
+    assert d.status == "grasp" and d.unrecognised and d.group == (0,) and v.asked[0] == (0.035, (0,))
+    assert np.linalg.norm(d.grasp[:2] - [0.05, 0.02]) < 0.02
+    assert next_pick(empty, GraspPlanner(FakeVerifier())).status == "unrecognised"  # nothing lifts
+    assert next_pick(empty, GraspPlanner(v), grasp_unrecognised=False).status == "unrecognised"
+
+
+@pytest.mark.parametrize("vary_axis", [False, True])
+def test_a_plan_skipping_what_an_earlier_one_tested_goes_on_where_it_stopped(scene, vary_axis):
+    whole = FakeVerifier()
+    GraspPlanner(whole, PlannerConfig("gp", max_physics=5, vary_axis=vary_axis)).plan(scene, scene.group)
+    v = FakeVerifier()
+    first = GraspPlanner(v, PlannerConfig("gp", max_physics=2, vary_axis=vary_axis)).plan(scene, scene.group)
+    GraspPlanner(v, PlannerConfig("gp", max_physics=3, vary_axis=vary_axis)).plan(
+        scene, scene.group, skip=first.tested_indices
+    )
+    assert len(whole.asked) == 5 and np.array_equal(np.array(v.asked), np.array(whole.asked))
+
+
+def test_last_resort_plans_deeper_before_giving_up():
+    """A lone cube whose only grasp is the sixth GP would test: the capped plan (4 checks)
+    misses it; the last resort goes on from the fifth and finds it, simulating nothing twice."""
+    from mog_drake.planning.picking import LAST_RESORT_CHECKS, next_pick
+
+    scene = make_scene([("small_yellow_cube", 0.02, -0.01, 0.3)])
+    order = FakeVerifier()
+    GraspPlanner(order, PlannerConfig("gp", max_physics=10)).plan(scene, (0,))
+    v = FakeVerifier(good=[order.asked[5]])
+    capped = GraspPlanner(v, PlannerConfig("gp", max_physics=4))
+    d = next_pick(scene, capped, "mog")
+    assert d.status == "grasp" and d.last_resort and np.allclose(d.grasp, order.asked[5])
+    assert d.physics_checks == 6 and np.array_equal(np.array(v.asked), np.array(order.asked[:6]))
+    v.asked.clear()
+    assert next_pick(scene, capped, "mog", last_resort=False).status == "no_grasp" and len(v.asked) == 4
+    v = FakeVerifier()  # no grasp at all: the last resort spends its checks, then gives up
+    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), "mog")
+    assert d.status == "no_grasp" and not d.last_resort
+    assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
+
+
 def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     """Three bars in a row: physics never lifts all three, but one candidate lifts two.
     With partial lifts that verified pair is the grasp (no pair or single is planned);

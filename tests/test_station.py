@@ -1,5 +1,6 @@
 """The station's port contract, perception on rendered tables, the controller and the arm."""
 
+import json
 import math
 
 import numpy as np
@@ -320,6 +321,118 @@ def test_tiny_picking_evaluation(tmp_path):
             assert k in r
     assert summary["pph_ratio_mog_over_sog"] > 0
     assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
+    for r, res in zip(
+        sorted(summary["rows"], key=lambda r: r["mode"]), sorted(results, key=lambda r: r["mode"])
+    ):
+        assert sum(r["finished"].values()) == r["scenes"] == 1 and res["summary"]["finished"] in r["finished"]
+        left = r["left_in_view"] + r["left_out_of_view"] + r["left_off_table"]
+        assert left == len(res["left"]) == round(3 * (1 - res["summary"]["picked_pct"] / 100))
+    assert picking_eval.losses_text(summary).count("runs ended:") == 2
+
+
+def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys, monkeypatch):
+    from mog_drake.cli import main
+    from mog_drake.errors import MogError
+    from mog_drake.experiments import picking_eval
+    from mog_drake.experiments.sweep import summary_only
+
+    text = "planner:\n  group_radius: 0.045\n  hold_s: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
+    (task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0, scenario=text)
+    sc = picking_eval.task_scenario(task)
+    assert (sc.planner.group_radius, sc.planner.hold_s, sc.robot.max_joint_speed) == (0.045, 1.5, 2.0)
+    assert (sc.planner.mode, sc.planner.seed, sc.scene.seed, sc.scene.n_objects) == (
+        "sog",
+        4_000_000,
+        4_000_000,
+        5,
+    )
+    assert (sc.scene.kind, sc.time_limit) == ("cluttered", 60.0)
+    (default_task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0)
+    assert (
+        "scenario" not in default_task
+        and picking_eval.task_scenario(default_task).planner.group_radius == 0.035
+    )
+
+    from mog_drake.systems import pick
+
+    seen = []
+    monkeypatch.setattr(
+        pick, "run_pick", lambda sc: seen.append(sc) or pick.PickRun(objects=5, shapes=["cube"] * 5)
+    )
+    record = picking_eval.picking_worker(task)
+    assert seen[0].planner.group_radius == 0.045 and record["summary"]["objects"] == 5
+    assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
+
+    with summary_only():
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
+        assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
+        with pytest.raises(MogError, match="holds a sweep with scenario="):
+            picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("planner:\n  group_radius: -1\n")
+    assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "group_radius must be in" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()  # refused before anything was written
+
+
+def test_what_perception_cannot_recognise_is_outlined_and_grasped(tmp_path):
+    """A shape perception does not know (here the trapezoid: it looks for pentagons only) is
+    an unrecognised blob with its outline and top height; once nothing recognised is left,
+    the planner grasps it as a prism of that outline, verified in physics like any grasp."""
+    import shapely
+    from conftest import make_scene
+
+    from mog_drake.perception import Perceiver, PerceptionConfig
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+    from mog_drake.systems.pick import make_planner
+
+    truth = make_scene([("green_trapezoid", 0.05, -0.04, 0.4), ("blue_pentagon", -0.08, 0.06, 0.0)])
+    truth.save(tmp_path / "unknown.yaml")
+    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "unknown.yaml")))
+    d, _ = MakeStation(sc)
+    rgb, depth = render_still(sc, d)
+    perceiver = Perceiver(
+        table=sc.table, ignore=sc.perception_ignore(), config=PerceptionConfig(shapes=("blue_pentagon",))
+    )
+    seen = perceiver.perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    assert [o.shape for o in seen.objects] == ["blue_pentagon"]
+    (blob,) = seen.meta["unrecognised"]
+    true, got = shapely.Polygon(truth.polygon(0)), shapely.Polygon(blob["vertices"])
+    assert got.intersection(true).area / got.union(true).area > 0.85
+    assert abs(blob["top"] - truth.shape(0).height) < 0.003
+
+    left = Scene([], seen.library, table=seen.table, meta=seen.meta)  # the pentagon was picked
+    decision = next_pick(left, make_planner(sc), "mog")
+    assert decision.status == "grasp" and decision.unrecognised and decision.expected == (0,)
+    assert shapely.Polygon(truth.polygon(0)).distance(shapely.Point(decision.grasp[:2])) < 0.005
+
+
+def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.planning.planner import GraspPlanner
+    from mog_drake.planning.protocol import GraspResult
+    from mog_drake.scenes import Scene, default_library
+    from mog_drake.systems.leaf_systems import Perceived, PlannerSystem
+
+    class LiftsAnything:  # a grasp always exists: only the planner system's count ends it
+        def check(self, scene, group, grasp):
+            return GraspResult(True, lifted=list(group))
+
+    blob = {"vertices": [[0.0, 0.0], [0.02, 0.0], [0.02, 0.035], [0.0, 0.035]], "top": 0.03}
+    p = PlannerSystem(GraspPlanner(LiftsAnything()), "mog")
+    ctx = p.CreateDefaultContext()
+    sim = Simulator(p, ctx)
+    seen = []
+    for k in range(5):
+        scene = Scene([], default_library(), meta={"unrecognised_blobs": 1, "unrecognised": [blob]})
+        p.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(k, scene)))
+        sim.AdvanceTo(ctx.get_time() + 0.02)
+        d = p.GetOutputPort("decision").Eval(ctx).decision
+        seen.append((d.status, d.unrecognised))
+    assert seen == [("grasp", True)] * 3 + [("unrecognised", False)] * 2
 
 
 def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
@@ -362,6 +475,9 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
         load_scenario(str(f))
     f.write_text("planner:\n  hold_s: 0\n")
     with pytest.raises(MogError, match="hold_s must be in"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  group_radius: 35\n")  # millimetres by mistake
+    with pytest.raises(MogError, match="group_radius must be in .* got 35"):
         load_scenario(str(f))
 
 

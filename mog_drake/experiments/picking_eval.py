@@ -3,6 +3,9 @@ cluttered tables, with 95 % confidence intervals."""
 
 from __future__ import annotations
 
+import hashlib
+from collections import Counter
+
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
 
@@ -28,18 +31,29 @@ COLUMNS = [
 ]
 
 
-def picking_worker(task: dict) -> dict:
+def task_scenario(task: dict):
+    """The scenario of one run: the sweep's base scenario (the defaults, or the YAML text in
+    ``task["scenario"]``) with the seeded table, the time limit, the mode and the seed set."""
     from dataclasses import replace
 
-    from mog_drake.station import PlannerSpec, Scenario, SceneSpec
-    from mog_drake.systems.pick import run_pick
+    from mog_drake.station import Scenario, SceneSpec, scenario_from_text
 
-    scenario = Scenario(
+    base = scenario_from_text(task["scenario"]) if task.get("scenario") else Scenario()
+    return replace(
+        base,
         scene=SceneSpec(kind="cluttered", seed=task["scene_seed"], n_objects=task["objects"]),
         time_limit=task["time_limit"],
+        planner=replace(base.planner, mode=task["mode"], seed=task["scene_seed"]),
     )
-    scenario.planner = replace(PlannerSpec(), mode=task["mode"], seed=task["scene_seed"])
-    run = run_pick(scenario)
+
+
+def picking_worker(task: dict) -> dict:
+    from mog_drake.systems.pick import run_pick
+
+    run = run_pick(task_scenario(task))
+    task = dict(task)
+    if task.get("scenario"):  # recorded once, in sweep.json
+        task["scenario"] = hashlib.sha256(task["scenario"].encode()).hexdigest()[:16]
     return {
         **task,
         "summary": run.summary(),
@@ -50,7 +64,7 @@ def picking_worker(task: dict) -> dict:
     }
 
 
-def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float) -> list[dict]:
+def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float, scenario: str = "") -> list[dict]:
     return [
         {
             "key": f"s{k}-{m}",
@@ -59,6 +73,7 @@ def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float) -> lis
             "scene_seed": seed * 1_000_000 + k,
             "objects": objects,
             "time_limit": time_limit,
+            **({"scenario": scenario} if scenario else {}),
         }
         for k in range(scenes)
         for m in modes
@@ -84,6 +99,10 @@ def summarize(results: list[dict], modes) -> dict:
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))
         row["paper_pph"] = paper.get("pph", float("nan"))
+        # Where the objects not picked ended, and why the runs stopped.
+        for where in ("in_view", "out_of_view", "off_table"):
+            row[f"left_{where}"] = sum(r.get(f"left_{where}", 0) for r in rs)
+        row["finished"] = dict(Counter(r.get("finished", "") for r in rs).most_common())
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if pph.get("sog") else float("nan")
@@ -100,22 +119,24 @@ def run(
     jobs: int = 1,
     ray_address=None,
     progress: bool = True,
+    scenario: str = "",
 ) -> tuple[dict, list[dict]]:
+    """``scenario``: YAML text of a base scenario (as ``mog-drake pick --scenario`` reads it)
+    whose settings every run uses, except the table, time limit, mode and seed set here."""
     modes = list(modes)
-    check_params(
-        out_dir,
-        {
-            "experiment": "picking",
-            "seed": seed,
-            "modes": modes,
-            "objects": objects,
-            "time_limit": time_limit,
-            "scenes": scenes,
-        },
-        growable=("scenes",),
-    )
+    params = {
+        "experiment": "picking",
+        "seed": seed,
+        "modes": modes,
+        "objects": objects,
+        "time_limit": time_limit,
+        "scenes": scenes,
+    }
+    if scenario:
+        params["scenario"] = scenario
+    check_params(out_dir, params, growable=("scenes",))
     results = run_sweep(
-        tasks(scenes, modes, seed, objects, time_limit),
+        tasks(scenes, modes, seed, objects, time_limit, scenario),
         picking_worker,
         out_dir,
         jobs,
@@ -124,3 +145,16 @@ def run(
         progress,
     )
     return summarize(results, modes), results
+
+
+def losses_text(summary: dict) -> str:
+    """One line per mode: where the objects not picked ended and how the runs ended."""
+    lines = []
+    for r in summary["rows"]:
+        ends = ", ".join(f"{n} {why}" for why, n in r.get("finished", {}).items())
+        lines.append(
+            f"{r['mode']}: objects left {r.get('left_in_view', 0)} in view, "
+            f"{r.get('left_out_of_view', 0)} out of view, {r.get('left_off_table', 0)} off the table; "
+            f"runs ended: {ends}"
+        )
+    return "\n".join(lines)

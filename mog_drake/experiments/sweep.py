@@ -51,9 +51,15 @@ def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes
         if diff:
             k = sorted(diff)[0]
             raise MogError(
-                f"{out_dir} holds a sweep with {k}={old.get(k)!r}, not {params.get(k)!r}: use another --out folder"
+                f"{out_dir} holds a sweep with {k}={_short(old.get(k))}, not {_short(params.get(k))}: "
+                "use another --out folder"
             )
     path.write_text(json.dumps(params, indent=2))
+
+
+def _short(value, n: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= n else text[: n - 3] + "..."
 
 
 _SUMMARY_ONLY = False

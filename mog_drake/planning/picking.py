@@ -12,6 +12,8 @@ Planner and Controller systems' job; this module decides the next grasp for one 
 
 from __future__ import annotations
 
+import copy
+import hashlib
 import time
 from dataclasses import dataclass, field, replace
 
@@ -19,7 +21,9 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import DEFAULT_GROUP_RADIUS, create_obj_groups, objects_in_reach, rank_obj_groups
+from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
+from mog_drake.scenes import Scene, SceneObject, make_shape
 
 MODES = ("mog", "sog")
 
@@ -28,6 +32,11 @@ MODES = ("mog", "sog")
 MEMORY_TOL = 0.003  # m
 MEMORY_REACH_MARGIN = 0.03  # m around the gripper's reach (the physics check uses 0.02)
 MEMORY_SIZE = 64
+# Before a decision gives up ("no_grasp": the run would end with objects on the table), every
+# group is planned again with this many more physics checks, going on where its capped plan
+# stopped (an extension; see next_pick's ``last_resort``).
+LAST_RESORT_CHECKS = 12
+LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
 
 
 @dataclass(frozen=True, eq=False)  # compared by identity (it holds arrays)
@@ -90,6 +99,10 @@ class PickDecision:
     status: str
     grasp: np.ndarray | None = None
     group: tuple[int, ...] = ()
+    # The grasp is of unrecognised blobs, planned as prisms of their outline (group and
+    # expected then index the blobs, not the scene's objects).
+    unrecognised: bool = False
+    last_resort: bool = False  # found by the last resort (see next_pick)
     groups_tried: int = 0
     partial: bool = False  # the grasp lifted part of a larger group it was planned for
     expected: tuple[int, ...] = ()  # objects the physics check lifted with this grasp
@@ -106,6 +119,8 @@ class PickDecision:
             "status": self.status,
             "grasp": None if self.grasp is None else [float(v) for v in self.grasp],
             "group": list(self.group),
+            "unrecognised": self.unrecognised,
+            "last_resort": self.last_resort,
             "groups_tried": self.groups_tried,
             "partial": self.partial,
             "expected": list(self.expected),
@@ -124,6 +139,8 @@ def next_pick(
     partial_lifts: bool = True,
     avoid=(),
     failures: tuple[FailedGroup, ...] | None = None,
+    grasp_unrecognised: bool = True,
+    last_resort: bool = True,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -143,15 +160,33 @@ def next_pick(
     to have no grasp is not planned again while every object within its reach lies where it
     did (its physics checks would replay the same verdicts); its remembered plan, partial lift
     included, stands in. Picking one group leaves most of the table untouched, so without
-    this the same failing groups are simulated again before every attempt."""
+    this the same failing groups are simulated again before every attempt.
+
+    last_resort (an extension): when no group has a grasp within the planner's cap on physics
+    checks per group, each is planned again, in the same order, with up to LAST_RESORT_CHECKS
+    more checks (LAST_RESORT_TOTAL in all) before the decision gives up (a run ends on
+    "no_grasp").
+
+    grasp_unrecognised (an extension): once no library object is left, the blobs perception
+    could not recognise (a prism knocked onto its side) are planned as prisms of their outline
+    and top height (``unrecognised_scene``); without a grasp for them the status is
+    "unrecognised"."""
     if mode not in MODES:
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
     t0 = time.perf_counter()
     if len(scene) == 0:
-        # Something the perception could not recognise (a prism knocked onto its side) is not
-        # a clear table.
-        status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
-        return PickDecision(status, planning_time=time.perf_counter() - t0)
+        # Something the perception could not recognise is not a clear table.
+        blobs = unrecognised_scene(scene) if grasp_unrecognised else None
+        if not blobs:
+            status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
+            return PickDecision(status, planning_time=time.perf_counter() - t0)
+        d = next_pick(
+            blobs, planner, mode, rng, group_radius, partial_lifts, avoid, failures, last_resort=last_resort
+        )
+        d.unrecognised = True
+        if d.status != "grasp":
+            d.status = "unrecognised"
+        return d
     polys = scene.polygons()
     if mode == "mog":
         groups = rank_obj_groups(
@@ -195,7 +230,66 @@ def next_pick(
     if decision.status != "grasp" and partial_lifts and best is not None:
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
         decision.partial, decision.expected = True, tuple(best[1])
+    if decision.status != "grasp" and last_resort and planner.config.max_physics:
+        _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
+    """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
+    skipping the candidates already simulated (a remembered plan simulated none now); takes
+    the first grasp found, or with ``partial_lifts`` the first partial lift."""
+    deeper = copy.copy(planner)
+    spent = 0
+    for first in list(decision.plans):
+        if spent >= LAST_RESORT_TOTAL:
+            return
+        deeper.config = replace(
+            planner.config, max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent)
+        )
+        res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=first.tested_indices)
+        decision.plans.append(res)
+        decision.groups_tried += 1
+        decision.physics_checks += res.tested
+        spent += res.tested
+        if res.found:
+            decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+            decision.expected = tuple(res.result.lifted)
+            decision.last_resort = True
+            return
+        if partial_lifts and res.best_lift is not None:  # a verified grasp of part of the group
+            decision.status, decision.grasp, decision.group = (
+                "grasp",
+                res.best_lift[0],
+                tuple(res.best_lift[1]),
+            )
+            decision.partial, decision.expected, decision.last_resort = True, tuple(res.best_lift[1]), True
+            return
+
+
+def unrecognised_scene(scene) -> Scene:
+    """The unrecognised blobs of a perceived ``scene`` (``meta["unrecognised"]``) as objects:
+    each a prism of its outline, as tall as its top, of the library's usual density. A blob's
+    shape is named after its outline, so the verifier never mistakes one blob for another."""
+    shapes, objects = {}, []
+    for blob in scene.meta.get("unrecognised", ()):
+        v = np.asarray(blob["vertices"], dtype=float)
+        if len(v) < 3 or abs(polygon_area(v)) < 1e-8:  # an outline with no area
+            continue
+        top = max(float(blob["top"]), 0.005)
+        digest = hashlib.sha1(np.round(np.append(v.ravel(), top), 5).tobytes()).hexdigest()[:10]
+        name = f"unrecognised_{digest}"
+        c = polygon_centroid(v)
+        try:
+            shapes[name] = make_shape(
+                name,
+                {"vertices": (v - c).tolist(), "height": top, "density": 1000.0, "color": [0.5, 0.5, 0.5]},
+            )
+        except MogError:  # not a convex outline
+            continue
+        objects.append(SceneObject(name, float(c[0]), float(c[1]), 0.0))
+    library = replace(scene.library, shapes={**scene.library.shapes, **shapes})
+    return Scene(objects, library, table=scene.table)

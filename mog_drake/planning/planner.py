@@ -127,10 +127,19 @@ class GraspPlanner:
         self.gripper = gripper or GripperGeometry()
 
     def plan(
-        self, scene, group, rng: np.random.Generator | None = None, method: str | None = None, avoid=()
+        self,
+        scene,
+        group,
+        rng: np.random.Generator | None = None,
+        method: str | None = None,
+        avoid=(),
+        skip=(),
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
-        (modulo pi: the jaws are symmetric) of one are skipped."""
+        (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
+        earlier plan of the same scene and group already simulated (its ``tested_indices``):
+        not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
+        goes on where the earlier one stopped."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -183,10 +192,13 @@ class GraspPlanner:
             times["filter"] += time.perf_counter() - t
         if len(avoid) and len(cands):
             order = order[~repeats(cands, avoid)[order]]
+        skip = [int(i) for i in skip if 0 <= int(i) < len(cands)]
+        if skip:
+            order = order[~np.isin(order, skip)]
 
         grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()
-        for i in self._test_order(order, cands, cfg.vary_axis):
+        for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
                 break
             last = self.verifier.check(scene, group, cands[i])
@@ -206,15 +218,16 @@ class GraspPlanner:
     AXIS_TOL = 0.15  # rad, closing axes this close (modulo pi) count as one axis
 
     @classmethod
-    def _test_order(cls, order, cands, vary_axis: bool):
+    def _test_order(cls, order, cands, vary_axis: bool, tried=()):
         """Yields candidate indices in ``order``; with ``vary_axis``, each one after a failure
-        is the first whose axis is not within AXIS_TOL of an axis already tried (falling back
-        to ``order`` once every remaining axis was tried). The caller stops at a success."""
+        (or ``tried``: axes already tried) is the first whose axis is not within AXIS_TOL of an
+        axis already tried (falling back to ``order`` once every remaining axis was tried).
+        The caller stops at a success."""
         if not vary_axis:
             yield from order
             return
         left = [int(i) for i in order]
-        tried: list[float] = []
+        tried = [float(a) for a in tried]
         while left:
             k = 0
             if tried:

@@ -20,6 +20,7 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS
 from mog_drake.perception import Perceiver, PerceptionConfig
 from mog_drake.planning.picking import PickDecision, next_pick
 
@@ -50,6 +51,7 @@ class Decision(_Immutable):
     objects_seen: int = 0
     recent: tuple = ()  # the last grasps issued, not to be repeated
     failures: tuple = ()  # groups found to have no grasp (see next_pick)
+    unrecognised_grasps: int = 0  # grasps of unrecognised blobs issued in a row
 
 
 class PerceptionSystem(LeafSystem):
@@ -101,6 +103,9 @@ class PlannerSystem(LeafSystem):
     """scene -> decision: Alg. 1 (mog) or the single-object baseline (sog) once per new scene."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
+    # Grasps of unrecognised blobs in a row before the run ends on them: each failed one moves
+    # the blob, so the planner would otherwise try a new outline until the time limit.
+    MAX_UNRECOGNISED_GRASPS = 3
 
     def __init__(
         self,
@@ -110,9 +115,13 @@ class PlannerSystem(LeafSystem):
         period: float = 0.01,
         partial_lifts: bool = True,
         remember_failures: bool = True,
+        group_radius: float = DEFAULT_GROUP_RADIUS,
+        last_resort: bool = True,
     ):
         super().__init__()
         self._planner = planner
+        self._group_radius = group_radius
+        self._last_resort = last_resort
         self._remember = remember_failures
         self._mode = mode
         self._partial_lifts = partial_lifts
@@ -140,10 +149,17 @@ class PlannerSystem(LeafSystem):
             partial_lifts=self._partial_lifts,
             avoid=cur.recent,
             failures=cur.failures if self._remember else None,
+            group_radius=self._group_radius,
+            grasp_unrecognised=cur.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
+            last_resort=self._last_resort,
         )
         recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
+        if d.status == "grasp":
+            blob_grasps = cur.unrecognised_grasps + 1 if d.unrecognised else 0
+        else:  # a clear table, or given up: the count stands
+            blob_grasps = cur.unrecognised_grasps
         state.get_mutable_abstract_state(self._state).set_value(
-            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures)
+            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures, blob_grasps)
         )
 
     def _out(self, context, output) -> None:
@@ -257,6 +273,7 @@ class ControllerSystem(LeafSystem):
                                 "objects_seen": d.objects_seen,
                                 "physics_checks": dec.physics_checks,
                                 "expected": list(dec.expected),
+                                **({"unrecognised": True} if dec.unrecognised else {}),
                             }
                         )
         elif s.mode in self.MOTIONS:

@@ -74,6 +74,8 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             scenario.planner.seed,
             partial_lifts=scenario.planner.partial_lifts,
             remember_failures=scenario.planner.remember_failures,
+            group_radius=scenario.planner.group_radius,
+            last_resort=scenario.planner.last_resort,
         ),
     )
     motion = ArmMotion(
