@@ -216,7 +216,9 @@ class Scenario:
     # pushed objects turn and slide, and with the paper's near-frictionless table (mu_table
     # 0.005, the row experiments' model) the verifier promised groups the world did not lift.
     planner_contact: ContactConfig = field(default_factory=lambda: ContactConfig(mu_table=0.3))
-    gripper: GripperPhysics = field(default_factory=GripperPhysics)
+    # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
+    # planner's physics check alike.
+    gripper: GripperPhysics = field(default_factory=lambda: GripperPhysics(coupled=True))
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])
     time_limit: float = 600.0  # s of simulated robot time

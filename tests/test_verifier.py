@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 from conftest import make_scene
 
@@ -161,3 +162,37 @@ def test_a_long_hold_drops_a_bar_on_its_side_held_end_to_end():
     assert not out["end", 2.5].success and not out["end", 2.5].error
     assert out["across", 0.2].success and out["across", 2.5].success
     assert out["across", 2.5].final_opening == pytest.approx(0.030, abs=0.004)
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_coupled_jaws_stay_mirror_images_under_uneven_commands(coupled):
+    """The 2F-85's linkage moves both jaws together. Commanded to uneven openings (left 30 mm,
+    right 15 mm from the centre), coupled jaws settle symmetric about the palm's centre;
+    uncoupled ones each go where they are told."""
+    from pydrake.multibody.plant import AddMultibodyPlant
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from mog_drake.geometry import GripperGeometry
+    from mog_drake.sim.models import ContactConfig, GripperPhysics, add_gantry_gripper
+
+    builder = DiagramBuilder()
+    contact = ContactConfig()
+    plant, _ = AddMultibodyPlant(contact.plant_config(), builder)
+    g = add_gantry_gripper(plant, GripperGeometry(), GripperPhysics(coupled=coupled), contact)
+    plant.Finalize()
+    desired = np.zeros(12)
+    desired[4], desired[5] = -0.030, 0.015
+    src = builder.AddSystem(ConstantVectorSource(desired))
+    builder.Connect(src.get_output_port(), plant.get_desired_state_input_port(g.instance))
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    pc = plant.GetMyContextFromRoot(sim.get_context())
+    sim.AdvanceTo(0.5)
+    left, right = g.joints[4].get_translation(pc), g.joints[5].get_translation(pc)
+    if coupled:
+        assert left == pytest.approx(-right, abs=2e-4)
+        assert 0.015 < right < 0.030  # the two motors meet in between
+    else:
+        assert (left, right) == pytest.approx((-0.030, 0.015), abs=5e-4)

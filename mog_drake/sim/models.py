@@ -97,6 +97,13 @@ class GripperPhysics:
     gantry_kd: float = 800.0
     yaw_kp: float = 400.0
     yaw_kd: float = 20.0
+    # The 2F-85's linkage moves both jaws together, mirror images about the palm's centre (a
+    # coupler constraint, right = -left). Uncoupled, each jaw is its own force-limited motor:
+    # once both push at the limit, nothing centres what they hold, and the held objects and
+    # jaws slide together along the closing axis under the arm's accelerations (the station
+    # dropped stacks on the way to the bin like that). Off here, so the paper's experiments keep
+    # the model they were run with; the pick-and-place scenario turns it on.
+    coupled: bool = False
 
 
 def _proximity(contact: ContactConfig, mu: float, compliant: bool) -> ProximityProperties:
@@ -232,6 +239,9 @@ def add_gripper_fingers(
         act = plant.AddJointActuator(f"{side}_finger_motor", joint, physics.force_limit)
         act.set_controller_gains(PdControllerGains(p=physics.finger_kp, d=physics.finger_kd))
         fingers.append((body, joint))
+    if physics.coupled:
+        # Needs a SAP-based discrete solver (sap, similar or lagged: the project's default).
+        plant.AddCouplerConstraint(fingers[1][1], fingers[0][1], -1.0, 0.0)
     return fingers
 
 
