@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from mog_drake.errors import MogError
@@ -111,6 +111,9 @@ def test_final_diameters_are_rigid_motion_invariant(name, x, y, th):
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05)), min_size=3, max_size=12))
+# Found by this test: the hull kept its leftmost point although it lay on an edge, which split
+# the edge in two and hid the triangle's only stable grasp.
+@example([(0.0, 0.0), (0.0, 0.03125), (0.03125, 0.0), (4.383042186366938e-82, -0.03125)])
 def test_d_fmin_is_the_minimum_width(points):
     """For any convex polygon, d_fmin equals the minimum width over all directions."""
     from mog_drake.geometry.polygon import convex_hull_ccw, polygon_area

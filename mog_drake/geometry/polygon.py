@@ -33,7 +33,12 @@ def convex_hull_ccw(points: np.ndarray) -> np.ndarray:
         while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= LENGTH_TOL**2:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    hull = lower[:-1] + upper[:-1]
+    # The chain starts at the leftmost point and never tests it: drop it (and so on) when it
+    # lies on the edge joining its neighbours.
+    while len(hull) > 3 and _cross(hull[-1], hull[0], hull[1]) <= LENGTH_TOL**2:
+        hull.pop(0)
+    return np.array(hull)
 
 
 def validate_convex_polygon(points, name: str) -> np.ndarray:
