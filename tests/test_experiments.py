@@ -214,4 +214,21 @@ def test_summary_only_runs_nothing(tmp_path):
         summary, results = conditions.run(
             [2], 1, seed=3, out_dir=tmp_path, progress=False, n_positions=4, n_orientations=2
         )
-    assert results == [] and not (tmp_path / "results.jsonl").read_text()
+    assert results == [] and not (tmp_path / "results.jsonl").exists()
+
+
+def test_summary_only_leaves_a_line_being_written_alone(tmp_path):
+    """A summary printed while the sweep runs in another process may read a line the sweep is
+    still writing: it leaves that line out of the summary and the file as it is."""
+    from mog_drake.experiments.sweep import summary_only
+
+    path = tmp_path / "results.jsonl"
+    torn = json.dumps({"key": "t0", "value": 0}) + "\n" + '{"key": "t1", "val'
+    path.write_text(torn)
+    tasks = [{"key": f"t{i}", "n": i} for i in range(2)]
+    with summary_only():
+        out = run_sweep(tasks, _worker_ok, tmp_path, progress=False)
+    assert [r["key"] for r in out] == ["t0"] and path.read_text() == torn
+    out = run_sweep(tasks, _worker_ok, tmp_path, progress=False)  # the sweep itself repairs it
+    assert [r["value"] for r in out] == [0, 1]
+    assert [json.loads(line)["key"] for line in path.read_text().splitlines()] == ["t0", "t1"]

@@ -23,14 +23,18 @@ from mog_drake.errors import MogError
 from mog_drake.progress import Progress
 
 
-def load_results(path: Path) -> dict[str, dict]:
-    """Finished results by key; truncates a torn (unterminated) last line in place."""
+def load_results(path: Path, repair: bool = True) -> dict[str, dict]:
+    """Finished results by key. A torn (unterminated) last line is left out; with ``repair``
+    it is also cut from the file, which only the sweep about to append to it may do: read
+    while another process is writing, that line is still being written."""
+    path = Path(path)
     if not path.exists():
         return {}
     data = path.read_bytes()
     if data and not data.endswith(b"\n"):
         data = data[: data.rfind(b"\n") + 1]
-        path.write_bytes(data)
+        if repair:
+            path.write_bytes(data)
     out = {}
     for line in data.decode().splitlines():
         if line.strip():
@@ -92,8 +96,11 @@ def run_sweep(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "results.jsonl"
-    done = load_results(path)
-    todo = [] if _SUMMARY_ONLY else [t for t in tasks if t["key"] not in done]
+    # A summary of a sweep still under way only reads: it must not touch the file.
+    done = load_results(path, repair=not _SUMMARY_ONLY)
+    if _SUMMARY_ONLY:
+        return [done[t["key"]] for t in tasks if t["key"] in done]
+    todo = [t for t in tasks if t["key"] not in done]
     bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
     bar.update(len(tasks) - len(todo))
     failed: list[dict] = []
