@@ -340,7 +340,7 @@ def _cmd_eval(args) -> int:
 
             load_scenario(args.scenario)  # refuses a bad file before anything runs
             scenario = Path(args.scenario).read_text()
-        summary, _ = picking_eval.run(
+        summary, results = picking_eval.run(
             args.scenes,
             modes,
             args.seed,
@@ -358,6 +358,18 @@ def _cmd_eval(args) -> int:
         text += "\n" + picking_eval.losses_text(summary)
         import json as _json
 
+        if args.compare:
+            from mog_drake.experiments.sweep import load_results
+
+            other = Path(args.compare) / "results.jsonl"
+            if not other.exists():
+                raise MogError(f"--compare: {other} does not exist (give a picking sweep's --out folder)")
+            paired = picking_eval.compare(list(load_results(other, repair=False).values()), results)
+            summary["compare"] = {"a": str(args.compare), **paired}
+            text += (
+                f"\n\npaired with {args.compare} (A) on {paired['tables']} common runs; B = {out}\n"
+                + picking_eval.compare_text(paired)
+            )
         (out / "summary.json").write_text(_json.dumps(summary, indent=2))
         _emit(args, summary, text + f"\n\nresults: {out / 'results.jsonl'}  figure: {png}")
         return 0
@@ -785,6 +797,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--ray", metavar="ADDRESS")
     sp.add_argument("--json", action="store_true")
     sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
+    sp.add_argument(
+        "--compare",
+        metavar="DIR",
+        help="another picking sweep's --out folder (A): paired differences of this one (B) on the tables both ran",
+    )
     sp.set_defaults(func=cmd_eval)
 
     for name, helptext in (

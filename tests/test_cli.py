@@ -107,3 +107,35 @@ def test_every_eval_takes_summary_only(tmp_path, capsys):
         with pytest.raises(SystemExit) as ex:
             main(["eval", e, "--help"])
         assert ex.value.code == 0 and "--summary-only" in capsys.readouterr().out
+
+
+def test_picking_sweeps_compare_from_the_command_line(tmp_path, capsys):
+    from mog_drake.experiments.picking_eval import tasks
+
+    def sweep(folder, pph):
+        folder.mkdir()
+        lines = []
+        for t in tasks(2, ["mog"], seed=0, objects=33, time_limit=900.0):
+            summary = {
+                "success_rate": 1.0,
+                "picked_pct": 100.0,
+                "objects_per_success": 1.5,
+                "pph": pph + t["scene"],
+                "attempts": 20,
+                "robot_time_s": 150.0,
+                "planning_time_s": 100.0,
+            }
+            lines.append(json.dumps({**t, "summary": summary, "attempts": []}))
+        (folder / "results.jsonl").write_text("\n".join(lines) + "\n")
+
+    sweep(tmp_path / "a", 400.0)
+    sweep(tmp_path / "b", 450.0)
+    args = "eval picking --scenes 2 --modes mog --seed 0 --summary-only".split()
+    code, out, err = run(
+        capsys, *args, "--out", str(tmp_path / "b"), "--compare", str(tmp_path / "a"), "--json"
+    )
+    assert code == 0, err
+    (pph,) = [r for r in json.loads(out)["compare"]["rows"] if r["metric"] == "pph"]
+    assert (pph["tables"], pph["b_minus_a"], pph["ci"]) == (2, 50.0, 0.0)
+    code, _, err = run(capsys, *args, "--out", str(tmp_path / "b"), "--compare", str(tmp_path / "nowhere"))
+    assert code == 2 and "--compare:" in err and "does not exist" in err

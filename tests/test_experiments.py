@@ -3,7 +3,7 @@ import json
 import pytest
 
 from mog_drake.errors import MogError
-from mog_drake.experiments import conditions, planning_eval
+from mog_drake.experiments import conditions, picking_eval, planning_eval
 from mog_drake.experiments.stats import mean_ci, proportion_ci
 from mog_drake.experiments.sweep import check_params, load_results, run_sweep
 
@@ -232,3 +232,51 @@ def test_summary_only_leaves_a_line_being_written_alone(tmp_path):
     out = run_sweep(tasks, _worker_ok, tmp_path, progress=False)  # the sweep itself repairs it
     assert [r["value"] for r in out] == [0, 1]
     assert [json.loads(line)["key"] for line in path.read_text().splitlines()] == ["t0", "t1"]
+
+
+def _picking_record(scene, mode, success, pph, attempts=(), seed=None):
+    summary = {k: 1.0 for k in picking_eval.PAIRED}
+    summary.update(success_rate=success, pph=pph)
+    return {
+        "key": f"s{scene}-{mode}",
+        "scene": scene,
+        "mode": mode,
+        "scene_seed": scene if seed is None else seed,
+        "summary": summary,
+        "attempts": list(attempts),
+    }
+
+
+def test_two_picking_sweeps_are_compared_table_by_table():
+    held = {"carried": [3, 4], "picked": 2}
+    dropped_one = {"carried": [3, 4], "picked": 1}
+    missed = {"carried": [], "picked": 0}
+    a = [
+        _picking_record(0, "mog", 0.90, 400.0, [held, dropped_one]),
+        _picking_record(1, "mog", 0.80, 500.0, [missed]),
+        _picking_record(2, "mog", 0.10, 100.0),  # B did not run this table
+        _picking_record(3, "mog", 0.10, 100.0),  # B ran another table under this key
+    ]
+    b = [
+        _picking_record(0, "mog", 1.00, 430.0, [held]),
+        _picking_record(1, "mog", 0.90, 510.0, [held, {"carried": [5, 6, 7], "picked": 0}]),
+        _picking_record(3, "mog", 1.00, 900.0, seed=99),
+    ]
+    doc = picking_eval.compare(a, b)
+    assert doc["tables"] == 2
+    rows = {r["metric"]: r for r in doc["rows"]}
+    assert rows["success_rate"]["tables"] == 2
+    assert rows["success_rate"]["a"] == pytest.approx(85.0) and rows["success_rate"]["b"] == pytest.approx(
+        95.0
+    )
+    assert rows["success_rate"]["b_minus_a"] == pytest.approx(10.0) and rows["success_rate"][
+        "ci"
+    ] == pytest.approx(0.0)
+    # Differences 30 and 10: mean 20, 95 % t half-width 12.706 * sd / sqrt(2) = 12.706 * 10.
+    assert rows["pph"]["b_minus_a"] == pytest.approx(20.0) and rows["pph"]["ci"] == pytest.approx(127.06)
+    drops = doc["transit_drops"]["mog"]
+    assert drops["a"] == {"drop_attempts": 1, "dropped": 1, "attempts": 3}
+    assert drops["b"] == {"drop_attempts": 1, "dropped": 3, "attempts": 3}
+    assert "A 1 (1 of 3 attempts); B 3 (1 of 3 attempts)" in picking_eval.compare_text(doc)
+    with pytest.raises(MogError, match="share no table"):
+        picking_eval.compare(a[2:3], b)

@@ -103,10 +103,96 @@ def summarize(results: list[dict], modes) -> dict:
         for where in ("in_view", "out_of_view", "off_table"):
             row[f"left_{where}"] = sum(r.get(f"left_{where}", 0) for r in rs)
         row["finished"] = dict(Counter(r.get("finished", "") for r in rs).most_common())
+        runs = [r for r in results if r["mode"] == m]
+        row["drop_attempts"], row["dropped"] = transit_drops(runs)
+        row["all_attempts"] = sum(len(r.get("attempts", ())) for r in runs)
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if pph.get("sog") else float("nan")
     return {"rows": rows, "pph_ratio_mog_over_sog": ratio}
+
+
+def transit_drops(runs: list[dict]) -> tuple[int, int]:
+    """(attempts, objects) of the runs' objects dropped in transit: lifted (in the air as the
+    arm left for the bin) but not in the bin when the attempt ended."""
+    attempts = objects = 0
+    for r in runs:
+        for a in r.get("attempts", ()):
+            lost = len(a.get("carried") or ()) - (a.get("picked") or 0)
+            if lost > 0:
+                attempts, objects = attempts + 1, objects + lost
+    return attempts, objects
+
+
+#: Per-table numbers ``compare`` pairs, with the factor that turns them into the table's units.
+PAIRED = {
+    "success_rate": 100.0,
+    "picked_pct": 1.0,
+    "objects_per_success": 1.0,
+    "pph": 1.0,
+    "attempts": 1.0,
+    "robot_time_s": 1.0,
+    "planning_time_s": 1.0,
+}
+COMPARE_COLUMNS = ["mode", "metric", "tables", "a", "b", "b_minus_a", "ci"]
+
+
+def compare(results_a: list[dict], results_b: list[dict]) -> dict:
+    """Sweep B against sweep A on the tables both ran (same key and table seed): per mode and
+    metric, both means and the mean paired difference B - A with its 95 % t interval (the
+    tables are the pairs, so table-to-table spread cancels). Also each side's transit drops
+    over those tables. Raises ``MogError`` when the two sweeps share no table."""
+    from mog_drake.errors import MogError
+
+    a = {r["key"]: r for r in results_a}
+    b = {r["key"]: r for r in results_b}
+    common = [k for k in a if k in b and a[k].get("scene_seed") == b[k].get("scene_seed")]
+    if not common:
+        raise MogError("the two picking sweeps share no table (same key and table seed): nothing to pair")
+    rows, drops = [], {}
+    for m in dict.fromkeys(a[k]["mode"] for k in common):
+        keys = [k for k in common if a[k]["mode"] == m]
+        for metric, scale in PAIRED.items():
+            pairs = [
+                (a[k]["summary"][metric] * scale, b[k]["summary"][metric] * scale)
+                for k in keys
+                if a[k]["summary"][metric] == a[k]["summary"][metric]
+                and b[k]["summary"][metric] == b[k]["summary"][metric]
+            ]
+            diff, ci = mean_ci([y - x for x, y in pairs])
+            rows.append(
+                {
+                    "mode": m,
+                    "metric": metric,
+                    "tables": len(pairs),
+                    "a": mean_ci([x for x, _ in pairs])[0],
+                    "b": mean_ci([y for _, y in pairs])[0],
+                    "b_minus_a": diff,
+                    "ci": ci,
+                }
+            )
+        drops[m] = {
+            side: dict(
+                zip(
+                    ("drop_attempts", "dropped", "attempts"),
+                    (*transit_drops([r[k] for k in keys]), sum(len(r[k].get("attempts", ())) for k in keys)),
+                )
+            )
+            for side, r in (("a", a), ("b", b))
+        }
+    return {"rows": rows, "transit_drops": drops, "tables": len(common)}
+
+
+def compare_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
+
+    text = format_table(doc["rows"], COMPARE_COLUMNS, {"b_minus_a": "B - A", "ci": "+-95 %"})
+    for m, sides in doc["transit_drops"].items():
+        text += f"\n{m}: objects dropped in transit: " + "; ".join(
+            f"{side.upper()} {d['dropped']} ({d['drop_attempts']} of {d['attempts']} attempts)"
+            for side, d in sides.items()
+        )
+    return text
 
 
 def run(
@@ -155,6 +241,7 @@ def losses_text(summary: dict) -> str:
         lines.append(
             f"{r['mode']}: objects left {r.get('left_in_view', 0)} in view, "
             f"{r.get('left_out_of_view', 0)} out of view, {r.get('left_off_table', 0)} off the table; "
-            f"runs ended: {ends}"
+            f"dropped in transit {r.get('dropped', 0)} in {r.get('drop_attempts', 0)} of "
+            f"{r.get('all_attempts', 0)} attempts; runs ended: {ends}"
         )
     return "\n".join(lines)
