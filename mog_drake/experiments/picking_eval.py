@@ -83,7 +83,8 @@ def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float, scenar
 def summarize(results: list[dict], modes) -> dict:
     rows = []
     for m in modes:
-        rs = [r["summary"] for r in results if r["mode"] == m]
+        runs = [r for r in results if r["mode"] == m]
+        rs = [r["summary"] for r in runs]
         if not rs:
             continue
         row = {"mode": m, "scenes": len(rs)}
@@ -103,25 +104,28 @@ def summarize(results: list[dict], modes) -> dict:
         for where in ("in_view", "out_of_view", "off_table"):
             row[f"left_{where}"] = sum(r.get(f"left_{where}", 0) for r in rs)
         row["finished"] = dict(Counter(r.get("finished", "") for r in rs).most_common())
-        runs = [r for r in results if r["mode"] == m]
-        row["drop_attempts"], row["dropped"] = transit_drops(runs)
-        row["all_attempts"] = sum(len(r.get("attempts", ())) for r in runs)
+        drops = transit_drops(runs)
+        row["drop_attempts"], row["dropped"] = drops["drop_attempts"], drops["dropped"]
+        row["all_attempts"] = drops["attempts"]
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if pph.get("sog") else float("nan")
     return {"rows": rows, "pph_ratio_mog_over_sog": ratio}
 
 
-def transit_drops(runs: list[dict]) -> tuple[int, int]:
-    """(attempts, objects) of the runs' objects dropped in transit: lifted (in the air as the
-    arm left for the bin) but not in the bin when the attempt ended."""
-    attempts = objects = 0
+def transit_drops(runs: list[dict]) -> dict:
+    """The runs' objects dropped in transit: lifted (in the air as the arm left for the bin)
+    but not in the bin when the attempt ended. {"drop_attempts": attempts that dropped some,
+    "dropped": objects, "attempts": all attempts}."""
+    out = {"drop_attempts": 0, "dropped": 0, "attempts": 0}
     for r in runs:
         for a in r.get("attempts", ()):
+            out["attempts"] += 1
             lost = len(a.get("carried") or ()) - (a.get("picked") or 0)
             if lost > 0:
-                attempts, objects = attempts + 1, objects + lost
-    return attempts, objects
+                out["drop_attempts"] += 1
+                out["dropped"] += lost
+    return out
 
 
 #: Per-table numbers ``compare`` pairs, with the factor that turns them into the table's units.
@@ -171,15 +175,7 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
                     "ci": ci,
                 }
             )
-        drops[m] = {
-            side: dict(
-                zip(
-                    ("drop_attempts", "dropped", "attempts"),
-                    (*transit_drops([r[k] for k in keys]), sum(len(r[k].get("attempts", ())) for k in keys)),
-                )
-            )
-            for side, r in (("a", a), ("b", b))
-        }
+        drops[m] = {"a": transit_drops([a[k] for k in keys]), "b": transit_drops([b[k] for k in keys])}
     return {"rows": rows, "transit_drops": drops, "tables": len(common)}
 
 
