@@ -265,13 +265,10 @@ def test_two_picking_sweeps_are_compared_table_by_table():
     doc = picking_eval.compare(a, b)
     assert doc["tables"] == 2
     rows = {r["metric"]: r for r in doc["rows"]}
-    assert rows["success_rate"]["tables"] == 2
-    assert rows["success_rate"]["a"] == pytest.approx(85.0) and rows["success_rate"]["b"] == pytest.approx(
-        95.0
-    )
-    assert rows["success_rate"]["b_minus_a"] == pytest.approx(10.0) and rows["success_rate"][
-        "ci"
-    ] == pytest.approx(0.0)
+    success = rows["success_rate"]
+    assert success["tables"] == 2
+    assert success["a"] == pytest.approx(85.0) and success["b"] == pytest.approx(95.0)
+    assert success["b_minus_a"] == pytest.approx(10.0) and success["ci"] == pytest.approx(0.0)
     # Differences 30 and 10: mean 20, 95 % t half-width 12.706 * sd / sqrt(2) = 12.706 * 10.
     assert rows["pph"]["b_minus_a"] == pytest.approx(20.0) and rows["pph"]["ci"] == pytest.approx(127.06)
     drops = doc["transit_drops"]["mog"]
