@@ -143,9 +143,13 @@ class Perceiver:
         config: PerceptionConfig | None = None,
         table=(-0.30, 0.30, -0.30, 0.30),
         ignore=(),
+        reach=None,
     ):
         """``ignore``: rectangles (xmin, xmax, ymin, ymax) of the table where no object is
-        looked for: fixtures standing on it, such as the bin, whose walls the camera sees."""
+        looked for: fixtures standing on it, such as the bin, whose walls the camera sees.
+        ``reach``: a disc (x, y, radius), the arm's reach; an object (or unrecognised blob)
+        whose centre lies outside it is not reported (counted in ``meta["beyond_reach"]``):
+        the robot could not pick it, and planning for it would only fail."""
         self.library = library or default_library()
         self.config = config or PerceptionConfig()
         self.table = table
@@ -153,6 +157,9 @@ class Perceiver:
         for r in self.ignore:
             if len(r) != 4 or not (r[0] < r[1] and r[2] < r[3]):
                 raise MogError(f"an ignored region must be (xmin, xmax, ymin, ymax) with min < max, got {r}")
+        self.reach = None if reach is None else tuple(float(v) for v in reach)
+        if self.reach is not None and (len(self.reach) != 3 or not self.reach[2] > 0):
+            raise MogError(f"reach must be (x, y, radius) with radius > 0, got {reach}")
         names = list(self.config.shapes) or list(self.library.shapes)
         # Toppled bars too: the same colour, a different top height and footprint.
         names += [v for v in self.library.resting_variants() if self.library.base_shape(v) in names]
@@ -219,7 +226,11 @@ class Perceiver:
         rest = np.flatnonzero(~covered)
         unknown = [rest[c] for c in _clusters(pts[rest], 0.0025) if w[rest[c]].sum() > cfg.unknown_area]
         found, moved = separate_overlaps(found, self.library)
+        n_seen = len(found) + len(unknown)
+        found = [o for o in found if self.within_reach(o.x, o.y)]
+        unknown = [idx for idx in unknown if self.within_reach(*pts[idx].mean(axis=0))]
         scene = Scene(found, self.library, table=tuple(self.table))
+        scene.meta["beyond_reach"] = n_seen - len(found) - len(unknown)
         scene.meta["unrecognised_blobs"] = len(unknown)
         # Each blob's outline seen from above (the convex hull of its points, simplified to
         # 1 mm) and the height of its top: enough to plan a grasp of it as a prism.
@@ -230,6 +241,12 @@ class Perceiver:
         ]
         scene.meta["overlap_corrections"] = moved
         return scene
+
+    def within_reach(self, x: float, y: float) -> bool:
+        if self.reach is None:
+            return True
+        cx, cy, r = self.reach
+        return math.hypot(x - cx, y - cy) <= r
 
     def _fit(self, shape, name, pts, idx, explained, negatives, others, centre):
         cfg = self.config

@@ -83,6 +83,10 @@ class RobotSpec:
     home: list[float] = field(default_factory=lambda: [-0.692, -2.413, 1.965, -1.122, -1.573, -2.262])
     max_joint_speed: float = 3.14  # rad/s (the UR5 does 180 deg/s)
     max_joint_acceleration: float = 3.14  # rad/s^2
+    # Horizontal distance from the base's axis within which the arm reaches a top-down grasp at
+    # the table (m). IK reaches 0.86 m in every direction over the table; 2 cm are kept for a
+    # grasp centred off its object. Perception reports no object whose centre lies beyond it.
+    reach: float = 0.84
     kp: float = 4000.0
     kd: float = 400.0
 
@@ -106,12 +110,14 @@ class CameraSpec:
     """An overhead pinhole RGB-D camera looking straight down at the table."""
 
     position: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.80])
-    yaw: float = 0.0  # rotation about the vertical (rad)
+    # Rotation about the vertical (rad). At pi/2 the image's long side (640 columns) runs along
+    # the table's y: objects dropped or pushed beside the bin (y ~ 0.35 m) stay in view.
+    yaw: float = 1.5707963
     width: int = 640
     height: int = 480
-    # 0.61 m over 480 rows (1.3 mm per pixel): the whole table, so that an object pushed to
-    # its edge is still seen (at 30 deg, 0.9 mm per pixel, objects pushed past |y| = 0.21 m
-    # were lost from view and left on the table).
+    # 0.61 m over 480 rows, 0.82 m over 640 columns (1.3 mm per pixel): the whole perceived
+    # table, so that an object pushed to its edge is still seen (at 30 deg, 0.9 mm per pixel,
+    # objects pushed past |y| = 0.21 m were lost from view and left on the table).
     fov_y_deg: float = 42.0
     depth_min: float = 0.1
     depth_max: float = 2.0
@@ -220,7 +226,9 @@ class Scenario:
     # planner's physics check alike.
     gripper: GripperPhysics = field(default_factory=lambda: GripperPhysics(coupled=True))
     planner: PlannerSpec = field(default_factory=PlannerSpec)
-    table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.30, 0.30])
+    # The perceived table (xmin, xmax, ymin, ymax): where perception looks for objects (within
+    # the arm's reach, robot.reach). The camera sees all of it; the table under it is larger.
+    table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.40, 0.40])
     time_limit: float = 600.0  # s of simulated robot time
     hardware: HardwareSpec = field(default_factory=HardwareSpec)
 
@@ -228,6 +236,11 @@ class Scenario:
         """Regions where perception looks for no object: the bin and 5 mm around it (the
         camera sees the outside of its walls)."""
         return [self.bin.footprint(0.005)]
+
+    def perception_reach(self) -> tuple[float, float, float]:
+        """(x, y, radius): the disc about the robot's base within which the arm reaches."""
+        bx, by, _ = self.robot.base
+        return (float(bx), float(by), float(self.robot.reach))
 
 
 def load_scenario(path: str | None = None) -> Scenario:
@@ -251,6 +264,8 @@ def _checked(where: str, load) -> Scenario:
         raise MogError(f"{where}: {str(e).splitlines()[0]}") from None
     try:
         check_planner_spec(sc.planner)
+        if not sc.robot.reach > 0:
+            raise MogError(f"robot.reach must be > 0 m, got {sc.robot.reach}")
     except MogError as e:
         raise MogError(f"{where}: {e}") from None
     return sc

@@ -256,7 +256,7 @@ def test_end_to_end_pick_clears_a_small_table():
 def test_objects_outside_the_bin_are_located():
     from mog_drake.systems.pick import where_left
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=3))
+    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=4))
     d, h = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     pc = h.plant.GetMyMutableContextFromRoot(ctx)
@@ -264,12 +264,17 @@ def test_objects_outside_the_bin_are_located():
 
     h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([0.0, 0.45, 0.02]))  # table, not in view
     h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.0, -0.5]))  # on the floor
-    # The camera sees the whole table (up to its corners) and nothing beyond its field of view.
+    h.plant.SetFreeBodyPose(pc, h.bodies[3], RigidTransform([0.29, 0.39, 0.02]))  # seen, beyond reach
+    # The camera sees the whole perceived table (up to its corners) and nothing beyond its
+    # field of view; its long side runs along y, past the bin's near wall.
     x0, x1, y0, y1 = sc.table
     assert all(sc.camera.sees([x, y, 0.0]) for x in (x0 + 1e-3, x1 - 1e-3) for y in (y0 + 1e-3, y1 - 1e-3))
-    assert not sc.camera.sees([0.0, 0.35, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
+    assert sc.camera.sees([0.0, 0.4, 0.0]) and not sc.camera.sees([0.32, 0.0, 0.0])
+    assert not sc.camera.sees([0.0, 0.42, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
+    bx, by, reach = sc.perception_reach()
+    assert math.hypot(0.29 - bx, 0.39 - by) > reach
     left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
-    assert [left[i][0] for i in range(3)] == ["in view", "out of view", "off the table"]
+    assert [left[i][0] for i in range(4)] == ["in view", "out of view", "off the table", "out of view"]
 
 
 def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
@@ -466,12 +471,47 @@ def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
     assert max(math.degrees(e["yaw"]) for e in errs) <= 3.0
 
 
+def test_perception_sees_beside_the_bin_and_leaves_out_what_the_arm_cannot_reach(tmp_path):
+    """Objects pushed or dropped beside the bin (y ~ 0.36 m) are in view and planned for; one
+    in the table's far corner, beyond the arm's reach, is not reported (it is counted)."""
+    from conftest import make_scene
+
+    from mog_drake.perception import Perceiver, pose_errors
+
+    truth = make_scene(
+        [
+            ("red_triangle", 0.06, 0.36, 0.4),  # beside the bin
+            ("thick_bar", -0.05, -0.37, 1.2),  # the far side
+            ("large_hexagon", 0.0, 0.0, 0.0),
+            ("small_yellow_cube", 0.28, 0.37, 0.3),  # in view, 0.87 m from the base
+        ],
+        table=(-0.3, 0.3, -0.4, 0.4),
+    )
+    truth.save(tmp_path / "edges.yaml")
+    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "edges.yaml")))
+    d, h = MakeStation(sc)
+    rgb, depth = render_still(sc, d)
+    args = (rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    everything = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(*args)
+    assert sorted(o.shape for o in everything.objects) == sorted(o.shape for o in truth.objects)
+    seen = Perceiver(table=sc.table, ignore=sc.perception_ignore(), reach=sc.perception_reach()).perceive(
+        *args
+    )
+    assert sorted(o.shape for o in seen.objects) == ["large_hexagon", "red_triangle", "thick_bar"]
+    assert seen.meta["beyond_reach"] == 1 and seen.meta["unrecognised_blobs"] == 0
+    errs = [e["position"] for e in pose_errors(seen, truth) if e["position"] is not None]
+    assert len(errs) == 3 and max(errs) <= 0.003
+
+
 def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     from mog_drake.errors import MogError
 
     f = tmp_path / "bad.yaml"
     f.write_text("planner:\n  method: fastest\n")
     with pytest.raises(MogError, match="planner.method .*'fastest'"):
+        load_scenario(str(f))
+    f.write_text("robot:\n  reach: 0.0\n")
+    with pytest.raises(MogError, match="robot.reach must be > 0 m, got 0.0"):
         load_scenario(str(f))
     f.write_text("planner:\n  hold_s: 0\n")
     with pytest.raises(MogError, match="hold_s must be in"):

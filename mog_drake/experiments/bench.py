@@ -207,7 +207,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
         d, h = MakeStation(sc, scene)
         rgb, depth = render_still(sc, d)
         t = time.perf_counter()
-        seen = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(
+        seen = Perceiver(table=sc.table, ignore=sc.perception_ignore(), reach=sc.perception_reach()).perceive(
             rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
         )
         dt = time.perf_counter() - t

@@ -65,9 +65,10 @@ class PerceptionSystem(LeafSystem):
         config: PerceptionConfig | None = None,
         period: float = 0.01,
         ignore=(),
+        reach=None,
     ):
         super().__init__()
-        self._perceiver = Perceiver(library, config, table, ignore)
+        self._perceiver = Perceiver(library, config, table, ignore, reach)
         self._X_WC = camera.X_WC().GetAsMatrix4()
         self._K = camera.intrinsics()
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))

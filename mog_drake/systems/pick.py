@@ -63,7 +63,13 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     builder.AddNamedSystem("station", station)
     perception = builder.AddNamedSystem(
         "perception",
-        PerceptionSystem(scenario.camera, scenario.table, library, ignore=scenario.perception_ignore()),
+        PerceptionSystem(
+            scenario.camera,
+            scenario.table,
+            library,
+            ignore=scenario.perception_ignore(),
+            reach=scenario.perception_reach(),
+        ),
     )
     planner = make_planner(scenario, verifier)
     planner_sys = builder.AddNamedSystem(
@@ -137,7 +143,8 @@ class PickRun:
     wall_time: float = 0.0
     finished: str = ""
     # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
-    # where "in view" (on the table, inside the perceived region and the camera's image),
+    # where "in view" (on the table, inside the perceived region, the camera's image and the
+    # arm's reach),
     # "out of view" (on the table, outside them) or "off the table".
     left: dict = field(default_factory=dict)
     shapes: list[str] = field(default_factory=list)  # the true scene's shape of each object id
@@ -219,6 +226,7 @@ class BinRetirement:
 def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:
     """Scoring only (ground truth): where each object outside the bin is."""
     x0, x1, y0, y1 = scenario.table
+    bx, by, reach = scenario.perception_reach()
     out = {}
     for i, b in bodies.items():
         if i in in_bin:
@@ -226,7 +234,12 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
         p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
         if p[2] < -0.02:
             where = "off the table"
-        elif x0 <= p[0] <= x1 and y0 <= p[1] <= y1 and scenario.camera.sees(p):
+        elif (
+            x0 <= p[0] <= x1
+            and y0 <= p[1] <= y1
+            and scenario.camera.sees(p)
+            and np.hypot(p[0] - bx, p[1] - by) <= reach
+        ):
             where = "in view"
         else:
             where = "out of view"
