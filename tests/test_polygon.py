@@ -114,6 +114,10 @@ def test_final_diameters_are_rigid_motion_invariant(name, x, y, th):
 # Found by this test: the hull kept its leftmost point although it lay on an edge, which split
 # the edge in two and hid the triangle's only stable grasp.
 @example([(0.0, 0.0), (0.0, 0.03125), (0.03125, 0.0), (4.383042186366938e-82, -0.03125)])
+# Also found by it: a point 1e-12 m off an edge (or off a corner) was kept by one chain of the
+# hull and dropped by the other, leaving a sliver edge and no (or the wrong) stable grasps.
+@example([(0.0, 0.0), (0.0, -0.03125), (0.03125, 0.0), (1e-12, 0.03125)])
+@example([(0.0, 0.0), (0.0, 1e-12), (0.03125, 0.0), (0.0078125, 0.03125)])
 def test_d_fmin_is_the_minimum_width(points):
     """For any convex polygon, d_fmin equals the minimum width over all directions."""
     from mog_drake.geometry.polygon import convex_hull_ccw, polygon_area

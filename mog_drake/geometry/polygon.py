@@ -18,25 +18,34 @@ def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
 
 
+def _corner(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether o -> a -> b turns left at a by more than LENGTH_TOL: a lies further than that
+    from the chord o-b, on its right. (A test on the cross product alone, which scales with
+    the chord's length, kept a point 1e-12 m off an edge on one chain and dropped it on the
+    other.)"""
+    return _cross(o, a, b) > LENGTH_TOL * float(np.hypot(b[0] - o[0], b[1] - o[1]))
+
+
 def convex_hull_ccw(points: np.ndarray) -> np.ndarray:
-    """Convex hull of 2-D points (Andrew's monotone chain), CCW, collinear points dropped."""
+    """Convex hull of 2-D points (Andrew's monotone chain), CCW; points within LENGTH_TOL of an
+    edge (collinear, or a near-duplicate of a corner) are dropped."""
     pts = np.unique(np.asarray(points, dtype=float), axis=0)  # sorted by x, then y
     if len(pts) < 3:
         return pts
     lower: list[np.ndarray] = []
     for p in pts:
-        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= LENGTH_TOL**2:
+        while len(lower) >= 2 and not _corner(lower[-2], lower[-1], p):
             lower.pop()
         lower.append(p)
     upper: list[np.ndarray] = []
     for p in pts[::-1]:
-        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= LENGTH_TOL**2:
+        while len(upper) >= 2 and not _corner(upper[-2], upper[-1], p):
             upper.pop()
         upper.append(p)
     hull = lower[:-1] + upper[:-1]
     # The chain starts at the leftmost point and never tests it: drop it (and so on) when it
     # lies on the edge joining its neighbours.
-    while len(hull) > 3 and _cross(hull[-1], hull[0], hull[1]) <= LENGTH_TOL**2:
+    while len(hull) > 3 and not _corner(hull[-1], hull[0], hull[1]):
         hull.pop(0)
     return np.array(hull)
 
