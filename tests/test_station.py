@@ -90,6 +90,32 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     assert pos.max() <= 0.005 and yaw.max() <= 5.0
 
 
+@pytest.mark.parametrize(
+    "grasp",
+    [
+        [0.12752252028311523, 0.11852848728774064, 0.11453723216212808],
+        [-0.09329131812729595, 0.002972219398899011, 0.4487989505128276],
+    ],
+)
+def test_approaches_the_clamped_spline_cannot_time_are_timed(grasp):
+    """Two grasps of a picking sweep (v4, tables 13 and 16) whose approach from the observe
+    pose TOPP-RA could not time on the clamped C2 spline: the arm now takes them."""
+    from mog_drake.station import FLANGE_TO_PALM
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    plan = m.pick_plan(np.array(grasp), sc.robot.home, sc.bin.center, sc.bin.depth)
+    traj = plan["approach"]
+    np.testing.assert_allclose(traj.value(0).ravel(), sc.robot.home, atol=1e-9)
+    np.testing.assert_allclose(
+        m.palm_pose(traj.value(traj.end_time()).ravel()).translation(), [*grasp[:2], 0.042], atol=5e-4
+    )
+    ts = np.linspace(0, traj.end_time(), 200)
+    v = np.array([traj.EvalDerivative(t, 1).ravel() for t in ts])
+    assert np.abs(v).max() <= sc.robot.max_joint_speed * 1.02
+
+
 def test_ik_reaches_the_workspace_corners():
     from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion

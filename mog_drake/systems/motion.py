@@ -117,20 +117,27 @@ class ArmMotion:
         s = d / d[-1]
         keep = np.concatenate([[True], np.diff(s) > 1e-9])
         s, W = s[keep], W[keep]
-        path = (
-            PiecewisePolynomial.CubicWithContinuousSecondDerivatives(s, W.T, np.zeros(6), np.zeros(6))
-            if len(s) > 2
-            else PiecewisePolynomial.FirstOrderHold(s, W.T)
-        )
-        grid = Toppra.CalcGridPoints(path, CalcGridPointsOptions())
-        toppra = Toppra(path, self.plant, grid)
+        if len(s) <= 2:
+            paths = [PiecewisePolynomial.FirstOrderHold(s, W.T)]
+        else:
+            # The C2 spline is the faster path. Clamped to zero slope at its ends after a long
+            # segment and a few short ones (home, above the grasp, down), it bends hard as it
+            # comes to rest, and TOPP-RA can fail there ("failed to find the maximum path
+            # acceleration at knot 139/146" on two v4 grasps). The shape-preserving cubic
+            # does not overshoot its waypoints, and it is solved when the spline is not.
+            paths = [
+                PiecewisePolynomial.CubicWithContinuousSecondDerivatives(s, W.T, np.zeros(6), np.zeros(6)),
+                PiecewisePolynomial.CubicShapePreserving(s, W.T, zero_end_point_derivatives=True),
+            ]
         vmax, amax = scale * self.vmax, scale * self.amax
-        toppra.AddJointVelocityLimit(-vmax * np.ones(6), vmax * np.ones(6))
-        toppra.AddJointAccelerationLimit(-amax * np.ones(6), amax * np.ones(6))
-        s_traj = toppra.SolvePathParameterization()
-        if s_traj is None:
-            raise MogError("TOPP-RA found no time parameterisation for the arm path")
-        return PathParameterizedTrajectory(path, s_traj)
+        for path in paths:
+            toppra = Toppra(path, self.plant, Toppra.CalcGridPoints(path, CalcGridPointsOptions()))
+            toppra.AddJointVelocityLimit(-vmax * np.ones(6), vmax * np.ones(6))
+            toppra.AddJointAccelerationLimit(-amax * np.ones(6), amax * np.ones(6))
+            s_traj = toppra.SolvePathParameterization()
+            if s_traj is not None:
+                return PathParameterizedTrajectory(path, s_traj)
+        raise MogError("TOPP-RA found no time parameterisation for the arm path")
 
     def bin_ik(self, position, yaw: float, seeds) -> np.ndarray:
         """The drop pose above the bin. Its yaw is free (the objects fall either way): the
