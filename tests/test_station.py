@@ -361,6 +361,27 @@ def test_tiny_picking_evaluation(tmp_path):
     assert picking_eval.losses_text(summary).count("runs ended:") == 2
 
 
+def test_a_picking_sweep_grows_by_a_mode_without_rerunning_the_other(tmp_path, monkeypatch):
+    from mog_drake.experiments import picking_eval
+    from mog_drake.systems import pick
+
+    seen = []
+
+    def fake_run(sc):
+        seen.append(sc.planner.mode)
+        return pick.PickRun(objects=5, shapes=["cube"] * 5)
+
+    monkeypatch.setattr(pick, "run_pick", fake_run)
+    picking_eval.run(2, ["mog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    summary, results = picking_eval.run(
+        2, ["mog", "sog"], seed=4, out_dir=tmp_path, objects=5, progress=False
+    )
+    assert seen == ["mog", "mog", "sog", "sog"]
+    assert sorted(r["key"] for r in results) == ["s0-mog", "s0-sog", "s1-mog", "s1-sog"]
+    assert [r["mode"] for r in summary["rows"]] == ["mog", "sog"]
+    assert json.loads((tmp_path / "sweep.json").read_text())["modes"] == ["mog", "sog"]
+
+
 def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys, monkeypatch):
     from mog_drake.cli import main
     from mog_drake.errors import MogError

@@ -216,7 +216,8 @@ def run(
     }
     if scenario:
         params["scenario"] = scenario
-    check_params(out_dir, params, growable=("scenes",))
+    # More tables, or another mode on the same tables, extend a sweep (runs are keyed by both).
+    check_params(out_dir, params, growable=("scenes", "modes"))
     results = run_sweep(
         tasks(scenes, modes, seed, objects, time_limit, scenario),
         picking_worker,
