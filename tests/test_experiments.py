@@ -1,4 +1,5 @@
 import json
+import math
 
 import pytest
 
@@ -277,3 +278,22 @@ def test_two_picking_sweeps_are_compared_table_by_table():
     assert "A 1 (1 of 3 attempts); B 3 (1 of 3 attempts)" in picking_eval.compare_text(doc)
     with pytest.raises(MogError, match="share no table"):
         picking_eval.compare(a[2:3], b)
+
+
+def test_grouping_ceiling_counts_the_grasps_alg1_needs_if_every_group_lifts_whole():
+    from conftest import make_scene
+
+    from mog_drake.experiments.picking_eval import grouping_ceiling
+
+    # Three bars in a row 30 mm apart: the middle one's neighbourhood holds all three (one
+    # grasp), the ends' hold two each (subsets, dropped). A fourth bar lies alone.
+    row = [("thin_bar", 0.03 * k, 0.0, 1.5708) for k in range(3)]
+    alone = ("thin_bar", -0.15, 0.1, 0.0)
+    assert grouping_ceiling(make_scene([*row, alone]), 0.035, 0.075) == pytest.approx(4 / 2)
+    # A radius under the spacing leaves four singles. A stroke too short for three bars'
+    # widths (3 x 7 mm): RankObjGroups drops the triple, and CreateObjGroups already dropped
+    # the pairs inside it, so one bar goes alone; the other two are then a pair.
+    assert grouping_ceiling(make_scene([*row, alone]), 0.025, 0.075) == pytest.approx(1.0)
+    assert grouping_ceiling(make_scene([*row, alone]), 0.035, 0.018) == pytest.approx(4 / 3)
+    assert grouping_ceiling(make_scene([*row, alone]), 0.035, 0.022) == pytest.approx(2.0)
+    assert math.isnan(grouping_ceiling(make_scene([]), 0.035, 0.075))

@@ -359,6 +359,11 @@ def test_tiny_picking_evaluation(tmp_path):
         left = r["left_in_view"] + r["left_out_of_view"] + r["left_off_table"]
         assert left == len(res["left"]) == round(3 * (1 - res["summary"]["picked_pct"] / 100))
     assert picking_eval.losses_text(summary).count("runs ended:") == 2
+    mog = next(r for r in summary["rows"] if r["mode"] == "mog")
+    # The seeded 3-object table's grouping ceiling, computed again by hand from its scene.
+    (task,) = picking_eval.tasks(1, ["mog"], seed=2, objects=3, time_limit=60.0)
+    assert mog["grouping_ceiling"] == picking_eval.task_grouping_ceiling(task) >= 1.0
+    assert "grouping ceiling" in picking_eval.losses_text(summary)
 
 
 def test_a_picking_sweep_grows_by_a_mode_without_rerunning_the_other(tmp_path, monkeypatch):
