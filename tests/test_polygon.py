@@ -83,6 +83,7 @@ def test_isrr33_inventory(lib):
         ([[0, 0], [1, 0], [float("nan"), 1]], "non-finite"),
         ([[0, 0], [1, 0], [float("inf"), 1]], "non-finite"),
         ([[0, 0], [1, 0], [0.5, 0], [0.5, 1]], "not a corner"),
+        ([[0, 0], [0, 1e-8], [0.03, 0.03], [0.03, -0.03]], "an edge is 1e-08 m long, under 1e-06 m"),
         ("abc", "vertices"),
     ],
 )
@@ -118,12 +119,16 @@ def test_final_diameters_are_rigid_motion_invariant(name, x, y, th):
 # hull and dropped by the other, leaving a sliver edge and no (or the wrong) stable grasps.
 @example([(0.0, 0.0), (0.0, -0.03125), (0.03125, 0.0), (1e-12, 0.03125)])
 @example([(0.0, 0.0), (0.0, 1e-12), (0.03125, 0.0), (0.0078125, 0.03125)])
+@example([(0.0, 0.0), (0.0, 1e-06), (0.03125, 0.03125), (0.03125, -0.015625)])
 def test_d_fmin_is_the_minimum_width(points):
     """For any convex polygon, d_fmin equals the minimum width over all directions."""
-    from mog_drake.geometry.polygon import convex_hull_ccw, polygon_area
+    from mog_drake.geometry.polygon import MIN_EDGE, convex_hull_ccw, polygon_area
 
     hull = convex_hull_ccw(np.array(points))
     if len(hull) < 3 or polygon_area(hull) < 1e-6:
+        return
+    # Shapes are refused with an edge under MIN_EDGE (final_diameters resolves 1e-7 m).
+    if np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1).min() < MIN_EDGE:
         return
     d = final_diameters(hull)
     assert len(d) >= 1

@@ -95,11 +95,12 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     [
         [0.12752252028311523, 0.11852848728774064, 0.11453723216212808],
         [-0.09329131812729595, 0.002972219398899011, 0.4487989505128276],
+        [-0.04591488584892374, -0.0872376541293426, 1.7951958020513104],  # v5, table 11
     ],
 )
 def test_approaches_the_clamped_spline_cannot_time_are_timed(grasp):
-    """Two grasps of a picking sweep (v4, tables 13 and 16) whose approach from the observe
-    pose TOPP-RA could not time on the clamped C2 spline: the arm now takes them."""
+    """Grasps of picking sweeps (v4 tables 13 and 16, v5 table 11, sog) whose approach from
+    the observe pose TOPP-RA could not time on the clamped C2 spline: the arm now takes them."""
     from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion
 

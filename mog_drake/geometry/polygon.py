@@ -12,6 +12,9 @@ from mog_drake.errors import MogError
 # Lengths below this (m) are treated as zero: 1e-9 m is a nanometre, far below any
 # modelling or sensing precision, and far above float round-off on metre-scale data.
 LENGTH_TOL = 1e-9
+# Shortest edge a shape may have (m): final_diameters decides contact geometry to 1e-7 m, so
+# an edge shorter than that is no edge to it (a 10 nm edge hid a triangle's grasps).
+MIN_EDGE = 1e-6
 
 
 def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -55,8 +58,8 @@ def validate_convex_polygon(points, name: str) -> np.ndarray:
 
     The points may come in any order (the hull is taken). Refused, with a message naming
     ``name``: non-finite numbers, fewer than 3 distinct points, repeated points, points that
-    are all collinear, and points that are not corners of the hull (the polygon is not
-    convex, or a point lies on an edge).
+    are all collinear, points that are not corners of the hull (the polygon is not convex,
+    or a point lies on an edge), and edges shorter than MIN_EDGE.
     """
     try:
         pts = np.asarray(points, dtype=float)
@@ -80,6 +83,9 @@ def validate_convex_polygon(points, name: str) -> np.ndarray:
             f"shape '{name}': not a convex polygon: vertex ({missing[0][0]:g}, {missing[0][1]:g}) "
             "is not a corner of the convex hull"
         )
+    edges = np.linalg.norm(np.roll(hull, -1, axis=0) - hull, axis=1)
+    if edges.min() < MIN_EDGE:
+        raise MogError(f"shape '{name}': an edge is {edges.min():.3g} m long, under {MIN_EDGE:g} m")
     return hull
 
 
