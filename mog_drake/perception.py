@@ -132,6 +132,14 @@ def _outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
     return convex_hull_ccw(np.asarray(hull.exterior.coords)[:-1])
 
 
+def within_reach(x: float, y: float, reach) -> bool:
+    """Whether (x, y) lies in the disc ``reach`` = (cx, cy, radius); any point for None."""
+    if reach is None:
+        return True
+    cx, cy, r = reach
+    return math.hypot(x - cx, y - cy) <= r
+
+
 def _inside(P: np.ndarray, rect) -> np.ndarray:
     """Which points of P (..., 3) lie strictly inside rect (xmin, xmax, ymin, ymax) in x, y."""
     x0, x1, y0, y1 = rect
@@ -237,8 +245,8 @@ class Perceiver:
         unknown = [rest[c] for c in _clusters(pts[rest], 0.0025) if w[rest[c]].sum() > cfg.unknown_area]
         found, moved = separate_overlaps(found, self.library)
         n_seen = len(found) + len(unknown)
-        found = [o for o in found if self.within_reach(o.x, o.y)]
-        unknown = [idx for idx in unknown if self.within_reach(*pts[idx].mean(axis=0))]
+        found = [o for o in found if within_reach(o.x, o.y, self.reach)]
+        unknown = [idx for idx in unknown if within_reach(*pts[idx].mean(axis=0), self.reach)]
         scene = Scene(found, self.library, table=tuple(self.table))
         scene.meta["beyond_reach"] = n_seen - len(found) - len(unknown)
         scene.meta["unrecognised_blobs"] = len(unknown)
@@ -251,12 +259,6 @@ class Perceiver:
         ]
         scene.meta["overlap_corrections"] = moved
         return scene
-
-    def within_reach(self, x: float, y: float) -> bool:
-        if self.reach is None:
-            return True
-        cx, cy, r = self.reach
-        return math.hypot(x - cx, y - cy) <= r
 
     def _fit(self, shape, name, pts, idx, explained, negatives, others, centre):
         cfg = self.config

@@ -242,6 +242,15 @@ class Scenario:
         bx, by, _ = self.robot.base
         return (float(bx), float(by), float(self.robot.reach))
 
+    def perceiver(self, library=None):
+        """A Perceiver of this scenario's perceived table: its ignored regions and the arm's
+        reach (what the Perception system uses)."""
+        from mog_drake.perception import Perceiver
+
+        return Perceiver(
+            library, table=self.table, ignore=self.perception_ignore(), reach=self.perception_reach()
+        )
+
 
 def load_scenario(path: str | None = None) -> Scenario:
     """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""

@@ -547,9 +547,7 @@ def test_perception_sees_beside_the_bin_and_leaves_out_what_the_arm_cannot_reach
     args = (rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
     everything = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(*args)
     assert sorted(o.shape for o in everything.objects) == sorted(o.shape for o in truth.objects)
-    seen = Perceiver(table=sc.table, ignore=sc.perception_ignore(), reach=sc.perception_reach()).perceive(
-        *args
-    )
+    seen = sc.perceiver().perceive(*args)
     assert sorted(o.shape for o in seen.objects) == ["large_hexagon", "red_triangle", "thick_bar"]
     assert seen.meta["beyond_reach"] == 1 and seen.meta["unrecognised_blobs"] == 0
     errs = [e["position"] for e in pose_errors(seen, truth) if e["position"] is not None]
@@ -617,16 +615,14 @@ def test_pose_errors_take_yaw_modulo_a_near_symmetry():
 def test_touching_thin_bars_are_split_right(seed):
     """On these tables two touching thin bars (one colour, one height) form one cluster; one
     k-means seeding split it wrongly (12.7 mm, 23 deg). The best of several splits is kept."""
-    from mog_drake.perception import Perceiver, pose_errors
+    from mog_drake.perception import pose_errors
     from mog_drake.scenes import cluttered_scene
 
     scene = cluttered_scene(np.random.default_rng(seed))
     sc = Scenario(scene=SceneSpec(kind="cluttered", seed=seed))
     d, h = MakeStation(sc, scene)
     rgb, depth = render_still(sc, d)
-    seen = Perceiver(table=sc.table, ignore=sc.perception_ignore(), reach=sc.perception_reach()).perceive(
-        rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
-    )
+    seen = sc.perceiver().perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
     errs = pose_errors(seen, scene)
     assert all(e["position"] is not None for e in errs) and seen.meta["unrecognised_blobs"] == 0
     assert max(e["position"] for e in errs) <= 0.003

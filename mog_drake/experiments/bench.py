@@ -185,7 +185,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
     objects found, missed and extra, median and worst position (mm) and yaw error (deg, modulo
     the shape's symmetry), and time per image. ``toppled`` bars per table are laid on their
     side before rendering (the pose a knocked-over bar takes)."""
-    from mog_drake.perception import Perceiver, pose_errors
+    from mog_drake.perception import pose_errors
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
     from mog_drake.station import MakeStation, Scenario, SceneSpec, render_still
 
@@ -207,9 +207,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
         d, h = MakeStation(sc, scene)
         rgb, depth = render_still(sc, d)
         t = time.perf_counter()
-        seen = Perceiver(table=sc.table, ignore=sc.perception_ignore(), reach=sc.perception_reach()).perceive(
-            rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
-        )
+        seen = sc.perceiver().perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
         dt = time.perf_counter() - t
         errs = pose_errors(seen, h.scene)
         found = [e for e in errs if e["object"] is not None and e["position"] is not None]

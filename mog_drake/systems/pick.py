@@ -12,6 +12,7 @@ from pydrake.multibody.math import SpatialVelocity
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from mog_drake.perception import within_reach
 from mog_drake.planning.planner import GraspPlanner, PlannerConfig
 from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario, check_planner_spec
 from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, PlannerSystem
@@ -144,8 +145,7 @@ class PickRun:
     finished: str = ""
     # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
     # where "in view" (on the table, inside the perceived region, the camera's image and the
-    # arm's reach),
-    # "out of view" (on the table, outside them) or "off the table".
+    # arm's reach), "out of view" (on the table, outside them) or "off the table".
     left: dict = field(default_factory=dict)
     shapes: list[str] = field(default_factory=list)  # the true scene's shape of each object id
 
@@ -226,7 +226,7 @@ class BinRetirement:
 def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:
     """Scoring only (ground truth): where each object outside the bin is."""
     x0, x1, y0, y1 = scenario.table
-    bx, by, reach = scenario.perception_reach()
+    reach = scenario.perception_reach()
     out = {}
     for i, b in bodies.items():
         if i in in_bin:
@@ -238,7 +238,7 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
             x0 <= p[0] <= x1
             and y0 <= p[1] <= y1
             and scenario.camera.sees(p)
-            and np.hypot(p[0] - bx, p[1] - by) <= reach
+            and within_reach(p[0], p[1], reach)
         ):
             where = "in view"
         else:
