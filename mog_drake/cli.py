@@ -618,6 +618,25 @@ def cmd_bench(args) -> int:
             for d in doc["disagreements"]
         )
         _emit(args, doc, text)
+    elif args.what == "hold":
+        from mog_drake.experiments.bench import bench_hold
+        from mog_drake.progress import Progress
+
+        bar = Progress(args.scenes, "hold", enabled=not args.json)
+        doc = bench_hold(args.scenes, args.seed, args.window, progress=bar)
+        bar.close()
+        text = format_table(doc["rows"]) + (
+            f"\nall checks: {doc['wall_s']:.1f} s with the full hold, {doc['wall_settled_s']:.1f} s ending it "
+            f"once settled ({doc['window_s']:g} s under {doc['settle_speed_m_s'] * 1e3:g} mm/s); "
+            f"{len(doc['differing'])} verdicts differ"
+        )
+        text += "".join(
+            f"\n  differs: {d['kind']} group {d['group']} grasp {[round(x, 5) for x in d['grasp']]}: "
+            f"full hold {d['full_hold']['success']} lifted {d['full_hold']['lifted']}, "
+            f"settled {d['settled']['success']} lifted {d['settled']['lifted']}"
+            for d in doc["differing"]
+        )
+        _emit(args, doc, text)
     return 0
 
 
@@ -840,16 +859,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
     sp.add_argument(
-        "what", choices=["geometry", "verifier", "agreement", "perception", "station", "replanning"]
+        "what", choices=["geometry", "verifier", "agreement", "perception", "station", "replanning", "hold"]
     )
     sp.add_argument(
         "--scenes",
         type=int,
         default=20,
-        help="scenes per class (geometry, verifier); tables (perception, replanning)",
+        help="scenes per class (geometry, verifier); tables (perception, replanning, hold)",
     )
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")
+    sp.add_argument(
+        "--window", type=float, default=0.5, help="hold: s every object must stay settled to end the hold"
+    )
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)

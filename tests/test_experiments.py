@@ -297,3 +297,9 @@ def test_grouping_ceiling_counts_the_grasps_alg1_needs_if_every_group_lifts_whol
     assert grouping_ceiling(make_scene([*row, alone]), 0.035, 0.018) == pytest.approx(4 / 3)
     assert grouping_ceiling(make_scene([*row, alone]), 0.035, 0.022) == pytest.approx(2.0)
     assert math.isnan(grouping_ceiling(make_scene([]), 0.035, 0.075))
+    # Grouped by the conditions, one grasp closes on the whole row, wherever its bars lie
+    # within the stroke: 20 mm apart four bars are one group (two grasps with the lone one),
+    # where the 35 mm radius needs three.
+    row4 = [("thin_bar", 0.02 * k, 0.0, 1.5708) for k in range(4)]
+    assert grouping_ceiling(make_scene([*row4, alone]), 0.035, 0.075) == pytest.approx(5 / 3)
+    assert grouping_ceiling(make_scene([*row4, alone]), 0.035, 0.075, "conditions") == pytest.approx(5 / 2)

@@ -129,6 +129,20 @@ def test_next_pick_tries_largest_groups_first_and_reports_clear():
     assert next_pick(Scene([], scene.library), GraspPlanner(v)).status == "table_clear"
 
 
+def test_next_pick_groups_by_the_conditions_when_asked():
+    from mog_drake.planning.picking import next_pick
+
+    # Four bars 20 mm apart across the closing axis: the radius groups three of them at most;
+    # the conditions group all four, and that group is planned first.
+    scene = make_scene([("thin_bar", 0.02 * k, 0.0, math.pi / 2) for k in range(4)])
+    v = FakeVerifier()
+    assert next_pick(scene, GraspPlanner(v), last_resort=False).plans[0].group == (0, 1, 2)
+    d = next_pick(scene, GraspPlanner(v), grouping="conditions", last_resort=False)
+    assert d.plans[0].group == (0, 1, 2, 3) and [p.group for p in d.plans][1:] == [(0,), (1,), (2,), (3,)]
+    with pytest.raises(MogError, match="grouping must be one of"):
+        next_pick(scene, GraspPlanner(v), grouping="nearest")
+
+
 def test_next_pick_single_object_mode_plans_single_objects():
     from mog_drake.planning.picking import next_pick
 

@@ -570,6 +570,12 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     f.write_text("planner:\n  group_radius: 35\n")  # millimetres by mistake
     with pytest.raises(MogError, match="group_radius must be in .* got 35"):
         load_scenario(str(f))
+    f.write_text("planner:\n  settle_window_s: 3.0\n")
+    with pytest.raises(MogError, match=r"settle_window_s must be in \[0, hold_s = 2.5\] s, got 3.0"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  grouping: nearest\n")
+    with pytest.raises(MogError, match="planner.grouping must be one of radius, conditions, got 'nearest'"):
+        load_scenario(str(f))
 
 
 def test_carrying_is_gentler_than_moving_empty():

@@ -164,6 +164,24 @@ def test_a_long_hold_drops_a_bar_on_its_side_held_end_to_end():
     assert out["across", 2.5].final_opening == pytest.approx(0.030, abs=0.004)
 
 
+def test_a_settled_hold_ends_early_with_the_full_holds_verdict():
+    """Ending the hold once every lifted object has settled (settle_window) keeps both
+    verdicts of the bar on its side: held end to end it creeps from the start of the hold and
+    still drops; held across it settles, and the check ends 0.5 s into the hold, not 2.5 s."""
+    yaw = 0.5
+    scene = make_scene([("thin_bar:on_side", 0.0, 0.0, yaw)], group=[0])
+    cfg = VerifierConfig(contact=ContactConfig(mu_table=0.3), hold_time=2.5, settle_window=0.5)
+    v = DrakeVerifier(cfg)
+    end = v.check(scene, [0], (0.0, 0.0, yaw))
+    across = v.check(scene, [0], (0.0, 0.0, yaw + math.pi / 2))
+    assert not end.success and not end.error  # it slipped during the hold
+    assert end.sim_time > cfg.timeline(v.gripper)["lift1"] + 0.5
+    assert across.success and across.complete and across.lifted == [0]
+    lift1 = cfg.timeline(v.gripper)["lift1"]
+    assert lift1 + 0.5 <= across.sim_time < lift1 + 0.6
+    assert across.final_opening == pytest.approx(0.030, abs=0.004)
+
+
 @pytest.mark.parametrize("coupled", [False, True])
 def test_coupled_jaws_stay_mirror_images_under_uneven_commands(coupled):
     """The 2F-85's linkage moves both jaws together. Commanded to uneven openings (left 30 mm,

@@ -333,3 +333,115 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict
             if progress:
                 progress(done, 2 * tables)
     return rows
+
+
+def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=None) -> dict:
+    """The picking's physics check with and without ending the hold once every object has
+    settled (``VerifierConfig.settle_window``), on the grasps the picking planner checks.
+
+    Per cluttered isrr33 table (seeds seed .. seed+tables-1): its first four multi-object
+    groups and four random lone objects, each planned as the picking planner plans it (the
+    built-in scenario: up to 4 physics checks, stopping at a success); every checked grasp is
+    checked again with the settled-hold exit. Then a bar laid on its side, alone, gripped
+    along 4 random axes from end to end to across (a grip that lifts and later slips).
+    Returns per kind (multi, lone, on_side) the checks, successes, verdicts that differ
+    (success or lifted objects), and mean wall and simulated seconds of each; and the
+    differing checks, to replay."""
+    from dataclasses import replace
+
+    from mog_drake.geometry import create_obj_groups, rank_obj_groups
+    from mog_drake.scenes import Scene, SceneObject, cluttered_scene
+    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.station import Scenario
+    from mog_drake.systems.pick import make_planner
+
+    if window <= 0:
+        raise MogError(f"hold bench: window must be > 0 s, got {window}")
+    planner = make_planner(Scenario())
+    ref = planner.verifier
+    fast = DrakeVerifier(replace(ref.config, settle_window=window), ref.gripper)
+    log: list[dict] = []
+
+    class _Both:
+        kind = ""
+
+        def check(self, scene, group, grasp):
+            a = ref.check(scene, group, grasp)
+            b = fast.check(scene, group, grasp)
+            log.append(
+                {
+                    "kind": self.kind,
+                    "scene": scene,
+                    "group": list(group),
+                    "grasp": list(grasp),
+                    "a": a,
+                    "b": b,
+                }
+            )
+            return a
+
+    both = _Both()
+    planner.verifier = both
+    rng = np.random.default_rng(seed)
+    for k in range(seed, seed + tables):
+        scene = cluttered_scene(np.random.default_rng(k))
+        polys = scene.polygons()
+        ranked = rank_obj_groups(create_obj_groups(polys.centers), polys.d_fmin, planner.gripper.w_g)
+        multi = [g for g in ranked if len(g) > 1][:4]
+        lone = [(int(i),) for i in rng.choice(len(scene), 4, replace=False)]
+        for kind, groups in (("multi", multi), ("lone", lone)):
+            both.kind = kind
+            for g in groups:
+                planner.plan(scene, g)
+        both.kind = "on_side"
+        bar = str(rng.choice(["thin_bar", "thick_bar"]))
+        yaw = float(rng.uniform(-np.pi, np.pi))
+        side = Scene([SceneObject(f"{bar}:on_side", 0.0, 0.0, yaw)], scene.library)
+        for turn in rng.uniform(0, np.pi / 2, 4):
+            both.check(side, [0], (0.0, 0.0, yaw + turn))
+        if progress:
+            progress(k - seed + 1, tables)
+
+    def same(a, b) -> bool:
+        return a.success == b.success and (not a.complete or sorted(a.lifted) == sorted(b.lifted))
+
+    rows = []
+    for kind in ("multi", "lone", "on_side"):
+        got = [r for r in log if r["kind"] == kind]
+        if not got:
+            continue
+        rows.append(
+            {
+                "kind": kind,
+                "checks": len(got),
+                "successes": sum(r["a"].success for r in got),
+                "differ": sum(not same(r["a"], r["b"]) for r in got),
+                "wall_s": float(np.mean([r["a"].wall_time for r in got])),
+                "wall_settled_s": float(np.mean([r["b"].wall_time for r in got])),
+                "sim_s": float(np.mean([r["a"].sim_time for r in got])),
+                "sim_settled_s": float(np.mean([r["b"].sim_time for r in got])),
+            }
+        )
+    differ = [
+        {
+            "kind": r["kind"],
+            "scene": r["scene"].to_dict(),
+            "group": r["group"],
+            "grasp": [float(v) for v in r["grasp"]],
+            "full_hold": r["a"].to_dict(),
+            "settled": r["b"].to_dict(),
+        }
+        for r in log
+        if not same(r["a"], r["b"])
+    ]
+    wall = sum(r["a"].wall_time for r in log), sum(r["b"].wall_time for r in log)
+    return {
+        "tables": tables,
+        "seed": seed,
+        "window_s": window,
+        "settle_speed_m_s": fast.config.settle_speed,
+        "rows": rows,
+        "wall_s": wall[0],
+        "wall_settled_s": wall[1],
+        "differing": differ,
+    }

@@ -64,18 +64,23 @@ def picking_worker(task: dict) -> dict:
     }
 
 
-def grouping_ceiling(scene, radius: float, w_g: float) -> float:
+def grouping_ceiling(scene, radius: float, w_g: float, grouping: str = "radius") -> float:
     """Objects per grasp that Alg. 1 would reach on ``scene`` if every grasp lifted exactly the
     group it was planned for and nothing else moved: CreateObjGroups and RankObjGroups, the
     first ranked group taken away, until the table is clear. What the grouping alone allows,
-    whatever the physics (a real grasp also pushes neighbours, and some groups fail)."""
-    from mog_drake.geometry import create_obj_groups, rank_obj_groups
+    whatever the physics (a real grasp also pushes neighbours, and some groups fail).
+    ``grouping`` as the picking's (see `next_pick`); "conditions" groups for the default
+    gripper and ignores ``radius`` and ``w_g``."""
+    from mog_drake.geometry import GripperGeometry, condition_groups, create_obj_groups, rank_obj_groups
     from mog_drake.scenes import Scene
 
     objects, grasps = list(scene.objects), 0
     while objects:
         polys = Scene(objects, scene.library, table=scene.table).polygons()
-        group = rank_obj_groups(create_obj_groups(polys.centers, radius), polys.d_fmin, w_g)[0]
+        if grouping == "conditions":
+            group = condition_groups(polys, GripperGeometry())[0]
+        else:
+            group = rank_obj_groups(create_obj_groups(polys.centers, radius), polys.d_fmin, w_g)[0]
         objects = [o for i, o in enumerate(objects) if i not in group]
         grasps += 1
     return len(scene.objects) / grasps if grasps else float("nan")
@@ -87,7 +92,9 @@ def task_grouping_ceiling(task: dict) -> float:
     from mog_drake.station import scene_from_spec
 
     sc = task_scenario(task)
-    return grouping_ceiling(scene_from_spec(sc.scene), sc.planner.group_radius, GripperGeometry().w_g)
+    return grouping_ceiling(
+        scene_from_spec(sc.scene), sc.planner.group_radius, GripperGeometry().w_g, sc.planner.grouping
+    )
 
 
 def tasks(scenes: int, modes, seed: int, objects: int, time_limit: float, scenario: str = "") -> list[dict]:

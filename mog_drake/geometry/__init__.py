@@ -20,6 +20,7 @@ from mog_drake.geometry.conditions import (
 from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.geometry.groups import (
     DEFAULT_GROUP_RADIUS,
+    condition_groups,
     create_obj_groups,
     objects_in_reach,
     rank_obj_groups,
@@ -38,6 +39,7 @@ __all__ = [
     "GripperGeometry",
     "PolygonSet",
     "candidate_grasps",
+    "condition_groups",
     "create_obj_groups",
     "evaluate_grasps",
     "final_diameters",

@@ -48,3 +48,68 @@ def objects_in_reach(scene, group, gripper, margin: float) -> list[int]:
     d = shapely.distance(hull, shapely.points(polys.centers))
     near = np.flatnonzero(d < polys.radii + gripper.reach_radius + margin)
     return sorted(set(int(i) for i in near) | set(int(i) for i in group))
+
+
+#: Grid of the conditions grouping (`condition_groups`): positions every STEP metres over the
+#: objects, closing axes k pi / N_ORIENTATIONS.
+CONDITION_GROUPS_STEP = 0.005  # m
+CONDITION_GROUPS_ORIENTATIONS = 12
+
+
+def condition_groups(
+    polys,
+    gripper,
+    step: float = CONDITION_GROUPS_STEP,
+    n_orientations: int = CONDITION_GROUPS_ORIENTATIONS,
+) -> list[tuple[int, ...]]:
+    """CreateObjGroups and RankObjGroups from the necessary conditions (an extension of Alg. 1;
+    the paper groups by a radius around each centre, `create_obj_groups`).
+
+    A grid of grasps covers the table: positions every ``step`` over the objects' extent,
+    closing axes k pi / ``n_orientations``. Each collision-free grasp of the grid names a set:
+    the objects with material inside its region S. The set is a group if the grasp satisfies
+    both necessary conditions for it (h0 >= its summed d_fmin, A_i > 0 for each member). A
+    grasp closing on objects whose centres are up to a stroke apart, bars side by side in a
+    row, gives a group the radius misses.
+
+    Multi-object groups that are a strict subset of another are removed, as in
+    `create_obj_groups`. Returned ranked: by decreasing size, then by decreasing best total
+    intersection area A_T over the grid grasps naming the group (the planner's own ranking),
+    then every single object as its own group, in index order."""
+    from mog_drake.geometry.conditions import AREA_EPS, evaluate_grasps
+
+    n = len(polys)
+    if n == 0:
+        return []
+    singles = [(i,) for i in range(n)]
+    if n == 1:
+        return singles
+    pts = polys.vertices.reshape(-1, 2)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    xs = np.arange(lo[0], hi[0] + step / 2, step)
+    ys = np.arange(lo[1], hi[1] + step / 2, step)
+    th = np.arange(n_orientations) * np.pi / n_orientations
+    X, Y = np.meshgrid(xs, ys)
+    pos = np.column_stack([X.ravel(), Y.ravel()])
+    # Keep positions within reach of some object: a grasp there can name a set.
+    near = shapely.distance(shapely.points(pos)[:, None], shapely.points(polys.centers)[None, :])
+    pos = pos[(near < polys.radii[None, :] + gripper.reach_radius).any(axis=1)]
+    grasps = np.column_stack([np.repeat(pos, len(th), axis=0), np.tile(th, len(pos))])
+    ev = evaluate_grasps(polys, np.arange(n), grasps, gripper)
+    member = ev.in_s & ev.collision_free[:, None]
+    member &= ev.areas > AREA_EPS
+    size = member.sum(axis=1)
+    h_fmin = member.astype(float) @ polys.d_fmin
+    ok = (size >= 2) & (ev.h0 >= h_fmin - LENGTH_TOL)
+    if not ok.any():
+        return singles
+    sets, inverse = np.unique(member[ok], axis=0, return_inverse=True)
+    score = np.full(len(sets), -np.inf)
+    np.maximum.at(score, inverse.ravel(), ev.areas[ok].sum(axis=1))
+    # Strict subsets of another set out.
+    counts = sets.sum(axis=1)
+    inter = sets.astype(int) @ sets.T.astype(int)
+    subset = (inter == counts[:, None]) & (counts[:, None] < counts[None, :])
+    keep = ~subset.any(axis=1)
+    order = sorted(np.flatnonzero(keep), key=lambda k: (-counts[k], -score[k]))
+    return [tuple(int(i) for i in np.flatnonzero(sets[k])) for k in order] + singles

@@ -20,12 +20,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import DEFAULT_GROUP_RADIUS, create_obj_groups, objects_in_reach, rank_obj_groups
+from mog_drake.geometry import (
+    DEFAULT_GROUP_RADIUS,
+    condition_groups,
+    create_obj_groups,
+    objects_in_reach,
+    rank_obj_groups,
+)
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
 MODES = ("mog", "sog")
+GROUPINGS = ("radius", "conditions")  # CreateObjGroups: the paper's, or by the conditions
 
 # A remembered failure applies while every object within reach of its group is where it was
 # (each vertex within this distance: perception's error on a resting object is about 1 mm).
@@ -141,10 +148,13 @@ def next_pick(
     failures: tuple[FailedGroup, ...] | None = None,
     grasp_unrecognised: bool = True,
     last_resort: bool = True,
+    grouping: str = "radius",
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
-    mode "mog": Alg. 1, the largest groups first. mode "sog": the paper's single-object
+    mode "mog": Alg. 1, the largest groups first. ``grouping`` "radius" forms the groups as the
+    paper does (`create_obj_groups` with ``group_radius``); "conditions" (an extension) forms
+    them from the grasps that satisfy the necessary conditions (`condition_groups`). mode "sog": the paper's single-object
     baseline, the same planner restricted to one object chosen at random (objects are tried
     in a random order until one has a grasp).
 
@@ -173,6 +183,8 @@ def next_pick(
     "unrecognised"."""
     if mode not in MODES:
         raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
+    if grouping not in GROUPINGS:
+        raise MogError(f"grouping must be one of {GROUPINGS}, got {grouping!r}")
     t0 = time.perf_counter()
     if len(scene) == 0:
         # Something the perception could not recognise is not a clear table.
@@ -181,14 +193,25 @@ def next_pick(
             status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
             return PickDecision(status, planning_time=time.perf_counter() - t0)
         d = next_pick(
-            blobs, planner, mode, rng, group_radius, partial_lifts, avoid, failures, last_resort=last_resort
+            blobs,
+            planner,
+            mode,
+            rng,
+            group_radius,
+            partial_lifts,
+            avoid,
+            failures,
+            last_resort=last_resort,
+            grouping=grouping,
         )
         d.unrecognised = True
         if d.status != "grasp":
             d.status = "unrecognised"
         return d
     polys = scene.polygons()
-    if mode == "mog":
+    if mode == "mog" and grouping == "conditions":
+        groups = condition_groups(polys, planner.gripper)
+    elif mode == "mog":
         groups = rank_obj_groups(
             create_obj_groups(polys.centers, group_radius), polys.d_fmin, planner.gripper.w_g
         )

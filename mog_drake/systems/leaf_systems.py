@@ -118,10 +118,12 @@ class PlannerSystem(LeafSystem):
         remember_failures: bool = True,
         group_radius: float = DEFAULT_GROUP_RADIUS,
         last_resort: bool = True,
+        grouping: str = "radius",
     ):
         super().__init__()
         self._planner = planner
         self._group_radius = group_radius
+        self._grouping = grouping
         self._last_resort = last_resort
         self._remember = remember_failures
         self._mode = mode
@@ -151,6 +153,7 @@ class PlannerSystem(LeafSystem):
             avoid=cur.recent,
             failures=cur.failures if self._remember else None,
             group_radius=self._group_radius,
+            grouping=self._grouping,
             grasp_unrecognised=cur.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             last_resort=self._last_resort,
         )

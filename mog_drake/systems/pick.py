@@ -32,6 +32,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
         physics=scenario.gripper,
         report_partial_lifts=2 if scenario.planner.partial_lifts else 0,
         hold_time=scenario.planner.hold_s,
+        settle_window=scenario.planner.settle_window_s,
     )
     # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
     default, jaws = VerifierConfig(), GripperGeometry()
@@ -82,6 +83,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             partial_lifts=scenario.planner.partial_lifts,
             remember_failures=scenario.planner.remember_failures,
             group_radius=scenario.planner.group_radius,
+            grouping=scenario.planner.grouping,
             last_resort=scenario.planner.last_resort,
         ),
     )
