@@ -88,6 +88,8 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     assert code == 0 and png.stat().st_size > 10_000, err
     code, _, err = run(capsys, "bench", "agreement", "--candidates", "0")
     assert code == 2 and "--candidates must be at least 1" in err
+    code, _, err = run(capsys, "bench", "hold", "--window", "0")
+    assert code == 2 and "hold bench: window must be > 0 s, got 0.0" in err
 
 
 def test_every_eval_takes_summary_only(tmp_path, capsys):

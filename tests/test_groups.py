@@ -46,9 +46,9 @@ def test_condition_groups_close_on_a_row_the_radius_splits():
 
 
 def test_condition_groups_keep_the_diameter_condition():
-    from mog_drake.geometry import GripperGeometry, condition_groups
-
     from conftest import make_scene
+
+    from mog_drake.geometry import GripperGeometry, condition_groups
 
     # A thick bar (12 mm across) between two large hexagons (35 mm flat to flat), 7 mm gaps.
     # A grasp centred on the bar has material of all three in S, but their summed d_fmin

@@ -154,9 +154,9 @@ def next_pick(
 
     mode "mog": Alg. 1, the largest groups first. ``grouping`` "radius" forms the groups as the
     paper does (`create_obj_groups` with ``group_radius``); "conditions" (an extension) forms
-    them from the grasps that satisfy the necessary conditions (`condition_groups`). mode "sog": the paper's single-object
-    baseline, the same planner restricted to one object chosen at random (objects are tried
-    in a random order until one has a grasp).
+    them from the grasps that satisfy the necessary conditions (`condition_groups`).
+    mode "sog": the paper's single-object baseline, the same planner restricted to one object
+    chosen at random (objects are tried in a random order until one has a grasp).
 
     partial_lifts (mog only; an extension of Alg. 1): a candidate that the physics check saw
     lift only k objects of a larger group is still a verified grasp of those k. Once every

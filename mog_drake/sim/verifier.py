@@ -57,13 +57,13 @@ class VerifierConfig:
     report_partial_lifts: int = 0
     # An extension (0: off, the whole hold is simulated): end the hold early once every
     # lifted object has moved slower than settle_speed for settle_window seconds. A grip
-    # that will slip creeps from the start of the hold, and faster and faster (a bar on its
-    # side held end to end: 1.6 mm/s 0.1 s into the hold, 3 mm/s at 0.9 s, then it drops);
-    # a grip that holds creeps at a steady few tenths of a mm/s (the compliant contact's
-    # regularised friction). An object's speed here is that of its origin plus its angular
-    # speed times its farthest point's distance from it (to first order, the fastest any point
-    # of it moves); the test is on the fastest object's speed averaged over the window. The
-    # bar above: 1.8-3 mm/s while it slips, 0.4-0.6 mm/s (spikes to 1.2) held across.
+    # that will slip creeps from the start of the hold, and faster and faster; a grip that
+    # holds creeps at a steady few tenths of a mm/s (the compliant contact's regularised
+    # friction). An object's speed here is that of its origin plus its angular speed times
+    # its farthest point's distance from it (to first order, the fastest any point of it
+    # moves); the test is on the fastest lifted object's speed averaged over the window. A
+    # bar on its side held end to end: 1.9 mm/s 0.1 s into the hold, 3.1 mm/s at 0.6 s, and
+    # it drops at 1.1 s; held across: 0.4-0.6 mm/s, with one-sample spikes up to 1.2 mm/s.
     settle_window: float = 0.0  # s
     settle_speed: float = 0.001  # m/s
 
