@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
+from mog_drake.geometry.conditions import AREA_EPS, evaluate_grasps
 from mog_drake.geometry.polygon import LENGTH_TOL
 
 #: Grouping radius used on the authors' robot (m): a little under half the 75 mm stroke.
@@ -76,8 +77,6 @@ def condition_groups(
     `create_obj_groups`. Returned ranked: by decreasing size, then by decreasing best total
     intersection area A_T over the grid grasps naming the group (the planner's own ranking),
     then every single object as its own group, in index order."""
-    from mog_drake.geometry.conditions import AREA_EPS, evaluate_grasps
-
     n = len(polys)
     if n == 0:
         return []
@@ -92,7 +91,7 @@ def condition_groups(
     X, Y = np.meshgrid(xs, ys)
     pos = np.column_stack([X.ravel(), Y.ravel()])
     # Keep positions within reach of some object: a grasp there can name a set.
-    near = shapely.distance(shapely.points(pos)[:, None], shapely.points(polys.centers)[None, :])
+    near = np.linalg.norm(pos[:, None, :] - polys.centers[None, :, :], axis=2)
     pos = pos[(near < polys.radii[None, :] + gripper.reach_radius).any(axis=1)]
     grasps = np.column_stack([np.repeat(pos, len(th), axis=0), np.tile(th, len(pos))])
     ev = evaluate_grasps(polys, np.arange(n), grasps, gripper)

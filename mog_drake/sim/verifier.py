@@ -241,7 +241,7 @@ class DrakeVerifier:
         z_joint = j[2]
         finger_h = cfg.physics.finger_height
         settle = {"samples": [], "next": timeline["lift1"]}
-        radii = [(body, sim.heights[i]) for i, body in sim.bodies.items()]
+        watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
         lifted_z = cfg.lifted_fraction * cfg.lift_height
 
         def settled(ctx, t) -> bool:
@@ -253,7 +253,7 @@ class DrakeVerifier:
                 return False
             settle["next"] = t + self.SETTLE_PERIOD
             fastest = 0.0
-            for body, r in radii:
+            for body, r in watched:
                 if plant.EvalBodyPoseInWorld(ctx, body).translation()[2] <= lifted_z:
                     continue  # on the table: nothing in the hold can lift it now
                 V = plant.EvalBodySpatialVelocityInWorld(ctx, body)
