@@ -39,9 +39,11 @@ class PerceptionConfig:
     unknown_area: float = 60e-6  # m^2: unexplained object points covering more are an unrecognised blob
     wall_margin: float = 0.004  # m around a fitted polygon where side-wall points are explained
     shapes: tuple[str, ...] = ()  # shapes to look for (default: every library shape)
-    # A cluster holding several instances of one shape (touching, one colour and height) is
-    # split from this many k-means seedings; the split whose fits explain most of its points
-    # is kept. One seeding split two touching thin bars wrongly on some pixel grids.
+    # A cluster holding three or more instances of one shape (touching, one colour and height)
+    # is split from this many k-means seedings (two instances: from median splits along 6
+    # directions, see _seedings); the split whose fits explain most of its points, less their
+    # spill onto the table, is kept. One seeding split two touching thin bars wrongly on some
+    # pixel grids.
     separation_tries: int = 5
 
 
@@ -92,6 +94,26 @@ def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) 
         lab = np.argmin(((pts[:, None] - centres[None]) ** 2).sum(-1), axis=1)
         centres = np.array([pts[lab == j].mean(axis=0) if np.any(lab == j) else centres[j] for j in range(k)])
     return centres
+
+
+def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
+    """Sets of k centres to fit k instances of one shape from, one set per try. k = 1: the
+    centroid. k = 2: the centroids of the two halves of the cluster split at its median along
+    each of 6 directions (k-means splits two bars lying side by side along the blob's longer
+    side, across both bars, and no seeding finds the split between them). k > 2: ``tries``
+    k-means seedings."""
+    if k == 1:
+        yield _kmeans(pts, 1, rng)
+    elif k == 2:
+        for a in np.arange(6) * np.pi / 6:
+            s = pts @ np.array([np.cos(a), np.sin(a)])
+            lo = s <= np.median(s)
+            if lo.all() or not lo.any():
+                continue
+            yield np.array([pts[lo].mean(axis=0), pts[~lo].mean(axis=0)])
+    else:
+        for _ in range(tries):
+            yield _kmeans(pts, k, rng)
 
 
 def _clusters(pts: np.ndarray, link: float) -> list[np.ndarray]:
@@ -221,18 +243,24 @@ class Perceiver:
                 if w[idx].sum() < cfg.min_fraction * shape.area:
                     continue
                 n_est = max(n_est, 1)
-                best = None  # (points of the cluster explained, explained mask, objects)
-                for _ in range(cfg.separation_tries if n_est > 1 else 1):
-                    mask, objs = explained.copy(), []
-                    for centre in _kmeans(pts[idx], min(n_est, len(idx)), rng):
+                best = None  # (score of the split, explained mask, objects)
+                for seeds in _seedings(pts[idx], min(n_est, len(idx)), cfg.separation_tries, rng):
+                    mask, objs, spill = explained.copy(), [], 0
+                    for centre in seeds:
                         pose = self._fit(shape, name, pts, idx, mask, negatives, pts[~colour], centre)
                         if pose is None:
                             continue
                         poly = transform(shape.vertices, *pose)
                         mask |= (_soft_inside(pts, poly, cfg.softness) > 0.5) & colour
+                        near = negatives[np.linalg.norm(negatives - pose[:2], axis=1) < shape.radius + 0.004]
+                        spill += int((_soft_inside(near, poly, cfg.softness) > 0.5).sum())
                         objs.append(SceneObject(name, *pose))
-                    if best is None or mask[idx].sum() > best[0]:
-                        best = (int(mask[idx].sum()), mask, objs)
+                    # Points of the cluster explained, less 1.5 per table point under a fit
+                    # (the weight of a negative in _fit): two fits lying across two bars
+                    # side by side explain most of them but spill onto the table.
+                    score = int(mask[idx].sum()) - 1.5 * spill
+                    if best is None or score > best[0]:
+                        best = (score, mask, objs)
                 explained = best[1]
                 found.extend(best[2])
         # Object points no fitted polygon explains (a prism knocked onto its side, say, or

@@ -617,10 +617,13 @@ def test_pose_errors_take_yaw_modulo_a_near_symmetry():
     assert errs[1]["yaw"] == pytest.approx(math.pi / 2)  # a bar across its true axis is wrong
 
 
-@pytest.mark.parametrize("seed", [0, 3])
-def test_touching_thin_bars_are_split_right(seed):
-    """On these tables two touching thin bars (one colour, one height) form one cluster; one
-    k-means seeding split it wrongly (12.7 mm, 23 deg). The best of several splits is kept."""
+@pytest.mark.parametrize("seed, yaw_deg", [(0, 3.0), (3, 3.0), (5, 5.0)])
+def test_touching_bars_are_split_right(seed, yaw_deg):
+    """On these tables two touching bars of one kind (one colour, one height) form one
+    cluster. On tables 0 and 3 (thin bars) one k-means seeding split it wrongly (12.7 mm,
+    23 deg). On table 5 two thick bars lie side by side, and every k-means seeding split the
+    blob across both bars (12.7 mm, 47 deg); median splits along 6 directions find the line
+    between them (3.8 deg off on one of the two)."""
     from mog_drake.perception import pose_errors
     from mog_drake.scenes import cluttered_scene
 
@@ -632,4 +635,4 @@ def test_touching_thin_bars_are_split_right(seed):
     errs = pose_errors(seen, scene)
     assert all(e["position"] is not None for e in errs) and seen.meta["unrecognised_blobs"] == 0
     assert max(e["position"] for e in errs) <= 0.003
-    assert max(math.degrees(e["yaw"]) for e in errs) <= 3.0
+    assert max(math.degrees(e["yaw"]) for e in errs) <= yaw_deg
