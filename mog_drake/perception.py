@@ -252,8 +252,11 @@ class Perceiver:
                             continue
                         poly = transform(shape.vertices, *pose)
                         mask |= (_soft_inside(pts, poly, cfg.softness) > 0.5) & colour
-                        near = negatives[np.linalg.norm(negatives - pose[:2], axis=1) < shape.radius + 0.004]
-                        spill += int((_soft_inside(near, poly, cfg.softness) > 0.5).sum())
+                        if n_est > 1:  # one try alone needs no score
+                            near = negatives[
+                                np.linalg.norm(negatives - pose[:2], axis=1) < shape.radius + 0.004
+                            ]
+                            spill += int((_soft_inside(near, poly, cfg.softness) > 0.5).sum())
                         objs.append(SceneObject(name, *pose))
                     # Points of the cluster explained, less 1.5 per table point under a fit
                     # (the weight of a negative in _fit): two fits lying across two bars
