@@ -92,6 +92,17 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     assert code == 2 and "hold bench: window must be > 0 s, got 0.0" in err
 
 
+def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():
+    from mog_drake.experiments.bench import hold_verifiers
+    from mog_drake.station import Scenario
+
+    # The built-in scenario ends its holds once settled: the reference must not.
+    planner, ref, fast = hold_verifiers(0.3)
+    assert Scenario().planner.settle_window_s > 0 and planner.verifier.config.settle_window > 0
+    assert ref.config.settle_window == 0.0 and fast.config.settle_window == 0.3
+    assert ref.config.hold_time == fast.config.hold_time == Scenario().planner.hold_s
+
+
 def test_every_eval_takes_summary_only(tmp_path, capsys):
     from mog_drake.experiments import conditions
 

@@ -335,6 +335,25 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict
     return rows
 
 
+def hold_verifiers(window: float):
+    """The built-in scenario's picking planner, and the two physics checks `bench_hold`
+    compares: its own settings with the whole hold simulated, and the same ending the hold
+    once settled for ``window`` seconds."""
+    from dataclasses import replace
+
+    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.station import Scenario
+    from mog_drake.systems.pick import make_planner
+
+    if window <= 0:
+        raise MogError(f"hold bench: window must be > 0 s, got {window}")
+    planner = make_planner(Scenario())
+    # The reference holds the whole hold, whatever the built-in scenario's settle window.
+    ref = DrakeVerifier(replace(planner.verifier.config, settle_window=0.0), planner.verifier.gripper)
+    fast = DrakeVerifier(replace(ref.config, settle_window=window), ref.gripper)
+    return planner, ref, fast
+
+
 def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=None) -> dict:
     """The picking's physics check with and without ending the hold once every object has
     settled (``VerifierConfig.settle_window``), on the grasps the picking planner checks.
@@ -347,19 +366,10 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
     Returns per kind (multi, lone, on_side) the checks, successes, verdicts that differ
     (success or lifted objects), and mean wall and simulated seconds of each; and the
     differing checks, to replay."""
-    from dataclasses import replace
-
     from mog_drake.geometry import create_obj_groups, rank_obj_groups
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene
-    from mog_drake.sim.verifier import DrakeVerifier
-    from mog_drake.station import Scenario
-    from mog_drake.systems.pick import make_planner
 
-    if window <= 0:
-        raise MogError(f"hold bench: window must be > 0 s, got {window}")
-    planner = make_planner(Scenario())
-    ref = planner.verifier
-    fast = DrakeVerifier(replace(ref.config, settle_window=window), ref.gripper)
+    planner, ref, fast = hold_verifiers(window)
     log: list[dict] = []
 
     class _Both:
