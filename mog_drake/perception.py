@@ -96,6 +96,12 @@ def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) 
     return centres
 
 
+# A fit weighs each point that is not of its object (table, another colour, already explained)
+# this much against each of its object's points it covers, within this margin of its radius.
+NEGATIVE_WEIGHT = 1.5
+FIT_MARGIN = 0.004  # m
+
+
 def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
     """Sets of k centres to fit k instances of one shape from, one set per try. k = 1: the
     centroid. k = 2: the centroids of the two halves of the cluster split at its median along
@@ -254,14 +260,14 @@ class Perceiver:
                         mask |= (_soft_inside(pts, poly, cfg.softness) > 0.5) & colour
                         if n_est > 1:  # one try alone needs no score
                             near = negatives[
-                                np.linalg.norm(negatives - pose[:2], axis=1) < shape.radius + 0.004
+                                np.linalg.norm(negatives - pose[:2], axis=1) < shape.radius + FIT_MARGIN
                             ]
                             spill += int((_soft_inside(near, poly, cfg.softness) > 0.5).sum())
                         objs.append(SceneObject(name, *pose))
-                    # Points of the cluster explained, less 1.5 per table point under a fit
-                    # (the weight of a negative in _fit): two fits lying across two bars
-                    # side by side explain most of them but spill onto the table.
-                    score = int(mask[idx].sum()) - 1.5 * spill
+                    # Points of the cluster explained, less each table point under a fit as
+                    # _fit weighs it: two fits lying across two bars side by side explain
+                    # most of them but spill onto the table.
+                    score = int(mask[idx].sum()) - NEGATIVE_WEIGHT * spill
                     if best is None or score > best[0]:
                         best = (score, mask, objs)
                 explained = best[1]
@@ -293,7 +299,7 @@ class Perceiver:
 
     def _fit(self, shape, name, pts, idx, explained, negatives, others, centre):
         cfg = self.config
-        r = shape.radius + 0.004
+        r = shape.radius + FIT_MARGIN
 
         def near(a):
             return a[np.linalg.norm(a - centre, axis=1) < r]
@@ -303,7 +309,7 @@ class Perceiver:
             return None
         neg = np.concatenate([near(negatives), near(others), near(pts[explained])])
         allp = np.concatenate([pos, neg])
-        weight = np.concatenate([np.ones(len(pos)), -1.5 * np.ones(len(neg))])
+        weight = np.concatenate([np.ones(len(pos)), -NEGATIVE_WEIGHT * np.ones(len(neg))])
         c_body = polygon_centroid(shape.vertices)
         v0 = shape.vertices
         e0 = np.roll(v0, -1, axis=0) - v0
@@ -311,7 +317,7 @@ class Perceiver:
         px, py = allp[:, 0], allp[:, 1]
 
         def scores(poses):
-            # poses (N, 3) -> (N,) smooth score: inside points of the shape minus 1.5 x negatives.
+            # poses (N, 3) -> (N,) smooth score: inside points of the shape less weighted negatives.
             c, s_ = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
             # Outward edge normals turn with the pose; offsets are normal . vertex.
             nx = c * n0[None, :, 0] - s_ * n0[None, :, 1]
