@@ -42,7 +42,7 @@ from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import CameraInfo, RgbdSensor
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import GripperGeometry
+from mog_drake.geometry import GROUPINGS, GripperGeometry
 from mog_drake.sim.models import (
     ContactConfig,
     GripperPhysics,
@@ -290,7 +290,7 @@ def _checked(where: str, load) -> Scenario:
 
 def check_planner_spec(spec: PlannerSpec) -> None:
     """Refuses a planner setting that would only fail once the robot is running."""
-    from mog_drake.planning.picking import GROUPINGS, MODES
+    from mog_drake.planning.picking import MODES
     from mog_drake.planning.planner import METHODS
 
     methods = [m for m in METHODS if m != "single"]  # picking chooses its objects itself

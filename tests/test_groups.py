@@ -73,3 +73,19 @@ def test_condition_groups_of_objects_no_grasp_can_join_are_singles():
     # 90 mm apart: no 75 mm stroke holds material of both.
     assert condition_groups(_bars([0.0, 0.09]).polygons(), GripperGeometry()) == [(0,), (1,)]
     assert condition_groups(_bars([0.0]).polygons(), GripperGeometry()) == [(0,)]
+
+
+def test_ranked_groups_follow_the_grouping_asked_for():
+    import pytest
+
+    from mog_drake.errors import MogError
+    from mog_drake.geometry import GripperGeometry, ranked_groups
+
+    polys = _bars([0.0, 0.02, 0.04, 0.06, 0.3]).polygons()
+    g = GripperGeometry()
+    assert ranked_groups(polys, g, "radius", 0.035)[0] == (0, 1, 2)
+    assert ranked_groups(polys, g, "conditions")[0] == (0, 1, 2, 3)
+    # A stroke too short for three 7 mm bars: RankObjGroups drops the triples.
+    assert all(len(x) < 3 for x in ranked_groups(polys, g, "radius", 0.035, w_g=0.018))
+    with pytest.raises(MogError, match="grouping must be one of"):
+        ranked_groups(polys, g, "nearest")

@@ -71,16 +71,13 @@ def grouping_ceiling(scene, radius: float, w_g: float, grouping: str = "radius")
     whatever the physics (a real grasp also pushes neighbours, and some groups fail).
     ``grouping`` as the picking's (see `next_pick`); "conditions" groups for the default
     gripper and ignores ``radius`` and ``w_g``."""
-    from mog_drake.geometry import GripperGeometry, condition_groups, create_obj_groups, rank_obj_groups
+    from mog_drake.geometry import GripperGeometry, ranked_groups
     from mog_drake.scenes import Scene
 
     objects, grasps = list(scene.objects), 0
     while objects:
         polys = Scene(objects, scene.library, table=scene.table).polygons()
-        if grouping == "conditions":
-            group = condition_groups(polys, GripperGeometry())[0]
-        else:
-            group = rank_obj_groups(create_obj_groups(polys.centers, radius), polys.d_fmin, w_g)[0]
+        group = ranked_groups(polys, GripperGeometry(), grouping, radius, w_g)[0]
         objects = [o for i, o in enumerate(objects) if i not in group]
         grasps += 1
     return len(scene.objects) / grasps if grasps else float("nan")

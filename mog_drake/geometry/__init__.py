@@ -20,10 +20,12 @@ from mog_drake.geometry.conditions import (
 from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.geometry.groups import (
     DEFAULT_GROUP_RADIUS,
+    GROUPINGS,
     condition_groups,
     create_obj_groups,
     objects_in_reach,
     rank_obj_groups,
+    ranked_groups,
 )
 from mog_drake.geometry.polygon import (
     final_diameters,
@@ -35,6 +37,7 @@ from mog_drake.geometry.polygon import (
 __all__ = [
     "AREA_EPS",
     "DEFAULT_GROUP_RADIUS",
+    "GROUPINGS",
     "GraspEvaluation",
     "GripperGeometry",
     "PolygonSet",
@@ -51,6 +54,7 @@ __all__ = [
     "min_final_diameter",
     "rank_grasp_cands",
     "rank_obj_groups",
+    "ranked_groups",
     "transform",
     "validate_convex_polygon",
 ]

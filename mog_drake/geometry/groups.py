@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
+from mog_drake.errors import MogError
 from mog_drake.geometry.conditions import AREA_EPS, evaluate_grasps
 from mog_drake.geometry.polygon import LENGTH_TOL
 
@@ -112,3 +113,21 @@ def condition_groups(
     keep = ~subset.any(axis=1)
     order = sorted(np.flatnonzero(keep), key=lambda k: (-counts[k], -score[k]))
     return [tuple(int(i) for i in np.flatnonzero(sets[k])) for k in order] + singles
+
+
+GROUPINGS = ("radius", "conditions")  # CreateObjGroups: the paper's, or by the conditions
+
+
+def ranked_groups(
+    polys, gripper, grouping: str = "radius", radius: float = DEFAULT_GROUP_RADIUS, w_g: float | None = None
+) -> list[tuple[int, ...]]:
+    """CreateObjGroups then RankObjGroups as ``grouping`` says: "radius" (the paper's,
+    `create_obj_groups` with ``radius``, then `rank_obj_groups` for a stroke ``w_g``, default
+    the gripper's) or "conditions" (`condition_groups` for ``gripper``)."""
+    if grouping == "conditions":
+        return condition_groups(polys, gripper)
+    if grouping == "radius":
+        return rank_obj_groups(
+            create_obj_groups(polys.centers, radius), polys.d_fmin, gripper.w_g if w_g is None else w_g
+        )
+    raise MogError(f"grouping must be one of {GROUPINGS}, got {grouping!r}")

@@ -20,19 +20,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import (
-    DEFAULT_GROUP_RADIUS,
-    condition_groups,
-    create_obj_groups,
-    objects_in_reach,
-    rank_obj_groups,
-)
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS, GROUPINGS, objects_in_reach, ranked_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
 MODES = ("mog", "sog")
-GROUPINGS = ("radius", "conditions")  # CreateObjGroups: the paper's, or by the conditions
 
 # A remembered failure applies while every object within reach of its group is where it was
 # (each vertex within this distance: perception's error on a resting object is about 1 mm).
@@ -209,12 +202,8 @@ def next_pick(
             d.status = "unrecognised"
         return d
     polys = scene.polygons()
-    if mode == "mog" and grouping == "conditions":
-        groups = condition_groups(polys, planner.gripper)
-    elif mode == "mog":
-        groups = rank_obj_groups(
-            create_obj_groups(polys.centers, group_radius), polys.d_fmin, planner.gripper.w_g
-        )
+    if mode == "mog":
+        groups = ranked_groups(polys, planner.gripper, grouping, group_radius)
     else:
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
