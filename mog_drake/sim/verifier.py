@@ -67,6 +67,11 @@ class VerifierConfig:
     settle_window: float = 0.0  # s
     settle_speed: float = 0.001  # m/s
 
+    @property
+    def lifted_height(self) -> float:
+        """Height (m) above which an object counts as lifted."""
+        return self.lifted_fraction * self.lift_height
+
     def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
         t_close0 = self.settle_time
         t_close1 = t_close0 + (gripper.opening - gripper.plate_thickness) / 2 / self.physics.close_speed
@@ -242,7 +247,7 @@ class DrakeVerifier:
         finger_h = cfg.physics.finger_height
         settle = {"samples": [], "next": timeline["lift1"]}
         watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
-        lifted_z = cfg.lifted_fraction * cfg.lift_height
+        lifted_z = cfg.lifted_height
 
         def settled(ctx, t) -> bool:
             """Whether, over the last settle_window of the hold, the fastest lifted object's
@@ -319,7 +324,7 @@ class DrakeVerifier:
             return GraspResult(False, sim_time=t, wall_time=wall, error="non-finite state at the end")
         x0, x1, y0, y1 = sim.table
         lifted, errors = [], []
-        threshold = cfg.lifted_fraction * cfg.lift_height
+        threshold = cfg.lifted_height
         for i, body in sim.bodies.items():
             p = plant.EvalBodyPoseInWorld(pc, body).translation()
             if p[2] < -0.02 or not (x0 - 0.2 <= p[0] <= x1 + 0.2 and y0 - 0.2 <= p[1] <= y1 + 0.2):
