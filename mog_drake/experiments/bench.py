@@ -366,7 +366,7 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
     Returns per kind (multi, lone, on_side) the checks, successes, verdicts that differ
     (success or lifted objects), and mean wall and simulated seconds of each; and the
     differing checks, to replay."""
-    from mog_drake.geometry import create_obj_groups, rank_obj_groups
+    from mog_drake.geometry import ranked_groups
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene
 
     planner, ref, fast = hold_verifiers(window)
@@ -396,7 +396,7 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
     for k in range(seed, seed + tables):
         scene = cluttered_scene(np.random.default_rng(k))
         polys = scene.polygons()
-        ranked = rank_obj_groups(create_obj_groups(polys.centers), polys.d_fmin, planner.gripper.w_g)
+        ranked = ranked_groups(polys, planner.gripper)
         multi = [g for g in ranked if len(g) > 1][:4]
         lone = [(int(i),) for i in rng.choice(len(scene), 4, replace=False)]
         for kind, groups in (("multi", multi), ("lone", lone)):
