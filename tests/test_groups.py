@@ -89,22 +89,3 @@ def test_ranked_groups_follow_the_grouping_asked_for():
     assert all(len(x) < 3 for x in ranked_groups(polys, g, "radius", 0.035, w_g=0.018))
     with pytest.raises(MogError, match="grouping must be one of"):
         ranked_groups(polys, g, "nearest")
-
-
-def test_condition_groups_come_with_the_grasps_that_formed_them():
-    from mog_drake.geometry import GripperGeometry, condition_group_grasps, condition_groups, evaluate_grasps
-    from mog_drake.geometry.conditions import AREA_EPS
-    from mog_drake.scenes import cluttered_scene
-
-    polys, g = cluttered_scene(np.random.default_rng(0)).polygons(), GripperGeometry()
-    found = condition_group_grasps(polys, g)
-    assert [grp for grp, _ in found] == condition_groups(polys, g)
-    multi = [(grp, w) for grp, w in found if len(grp) > 1]
-    assert len(multi) > 5 and all(len(w) == 0 for grp, w in found if len(grp) == 1)
-    everyone = np.arange(len(polys))
-    for grp, w in multi:
-        assert w.ndim == 2 and w.shape[1] == 3 and len(w) > 0
-        assert evaluate_grasps(polys, grp, w, g).passed.all()  # both conditions, for this group
-        ev = evaluate_grasps(polys, everyone, w, g)
-        inside = ev.in_s & (ev.areas > AREA_EPS)  # material of exactly the group in S
-        assert all(tuple(np.flatnonzero(row)) == grp for row in inside)

@@ -143,26 +143,6 @@ def test_next_pick_groups_by_the_conditions_when_asked():
         next_pick(scene, GraspPlanner(v), grouping="nearest")
 
 
-def test_a_conditions_group_is_planned_with_the_grasps_that_formed_it():
-    from mog_drake.geometry import GripperGeometry, condition_group_grasps
-    from mog_drake.planning.picking import next_pick
-    from mog_drake.scenes import cluttered_scene
-
-    # Table 0's largest conditions group: six objects, and one grasp of the 5 mm grid reaches
-    # into all six. The planner's own candidates (70 positions x 7 axes) hold none that does.
-    scene = cluttered_scene(np.random.default_rng(0))
-    group, witnesses = condition_group_grasps(scene.polygons(), GripperGeometry())[0]
-    assert len(group) >= 5 and len(witnesses) >= 1
-    v = FakeVerifier(good=witnesses[:1])
-    planner = GraspPlanner(v, PlannerConfig("gp", edge_orientations=True))
-    own = planner.plan(scene, group)
-    assert own.passed_conditions == 0 and not own.found and v.asked == []
-    res = planner.plan(scene, group, extra=witnesses)
-    assert res.found and np.allclose(res.grasp, witnesses[0]) and res.passed_conditions >= 1
-    d = next_pick(scene, planner, grouping="conditions", last_resort=False)
-    assert d.status == "grasp" and d.group == group and d.groups_tried == 1
-
-
 def test_next_pick_single_object_mode_plans_single_objects():
     from mog_drake.planning.picking import next_pick
 

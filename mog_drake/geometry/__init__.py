@@ -21,7 +21,6 @@ from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.geometry.groups import (
     DEFAULT_GROUP_RADIUS,
     GROUPINGS,
-    condition_group_grasps,
     condition_groups,
     create_obj_groups,
     objects_in_reach,
@@ -43,7 +42,6 @@ __all__ = [
     "GripperGeometry",
     "PolygonSet",
     "candidate_grasps",
-    "condition_group_grasps",
     "condition_groups",
     "create_obj_groups",
     "evaluate_grasps",

@@ -65,18 +65,7 @@ def condition_groups(
     n_orientations: int = CONDITION_GROUPS_ORIENTATIONS,
 ) -> list[tuple[int, ...]]:
     """CreateObjGroups and RankObjGroups from the necessary conditions (an extension of Alg. 1;
-    the paper groups by a radius around each centre, `create_obj_groups`): the groups of
-    `condition_group_grasps`, in its order."""
-    return [g for g, _ in condition_group_grasps(polys, gripper, step, n_orientations)]
-
-
-def condition_group_grasps(
-    polys,
-    gripper,
-    step: float = CONDITION_GROUPS_STEP,
-    n_orientations: int = CONDITION_GROUPS_ORIENTATIONS,
-) -> list[tuple[tuple[int, ...], np.ndarray]]:
-    """The conditions grouping (`condition_groups`), each group with the grasps that formed it.
+    the paper groups by a radius around each centre, `create_obj_groups`).
 
     A grid of grasps covers the table: positions every ``step`` over the objects' extent,
     closing axes k pi / ``n_orientations``. Each collision-free grasp of the grid names a set:
@@ -88,16 +77,11 @@ def condition_group_grasps(
     Multi-object groups that are a strict subset of another are removed, as in
     `create_obj_groups`. Returned ranked: by decreasing size, then by decreasing best total
     intersection area A_T over the grid grasps naming the group (the planner's own ranking),
-    then every single object as its own group, in index order.
-
-    Each group comes with its witnesses: the grid grasps (x, y, theta) whose set it is, an
-    (m, 3) array (empty for a single). They satisfy both conditions for it, and the planner's
-    own candidate grid may miss them all: S must reach into every member at once, and for
-    four or more objects few grasps do."""
+    then every single object as its own group, in index order."""
     n = len(polys)
     if n == 0:
         return []
-    singles = [((i,), np.zeros((0, 3))) for i in range(n)]
+    singles = [(i,) for i in range(n)]
     if n == 1:
         return singles
     pts = polys.vertices.reshape(-1, 2)
@@ -128,10 +112,7 @@ def condition_group_grasps(
     subset = (inter == counts[:, None]) & (counts[:, None] < counts[None, :])
     keep = ~subset.any(axis=1)
     order = sorted(np.flatnonzero(keep), key=lambda k: (-counts[k], -score[k]))
-    inverse, witnesses = inverse.ravel(), grasps[ok]
-    return [
-        (tuple(int(i) for i in np.flatnonzero(sets[k])), witnesses[inverse == k]) for k in order
-    ] + singles
+    return [tuple(int(i) for i in np.flatnonzero(sets[k])) for k in order] + singles
 
 
 GROUPINGS = ("radius", "conditions")  # CreateObjGroups: the paper's, or by the conditions

@@ -20,13 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import (
-    DEFAULT_GROUP_RADIUS,
-    GROUPINGS,
-    condition_group_grasps,
-    objects_in_reach,
-    ranked_groups,
-)
+from mog_drake.geometry import DEFAULT_GROUP_RADIUS, GROUPINGS, objects_in_reach, ranked_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.scenes import Scene, SceneObject, make_shape
@@ -208,13 +202,7 @@ def next_pick(
             d.status = "unrecognised"
         return d
     polys = scene.polygons()
-    witnesses: dict[tuple[int, ...], np.ndarray] = {}
-    if mode == "mog" and grouping == "conditions":
-        # The grasps that formed a group are its first candidates: the planner's grid may
-        # hold none that reaches every member.
-        witnesses = dict(condition_group_grasps(polys, planner.gripper))
-        groups = list(witnesses)
-    elif mode == "mog":
+    if mode == "mog":
         groups = ranked_groups(polys, planner.gripper, grouping, group_radius)
     else:
         if rng is None:
@@ -239,7 +227,7 @@ def next_pick(
                         del pending[k]
                         break
         if res is None:
-            res = planner.plan(scene, group, rng=rng, avoid=avoid, extra=witnesses.get(group))
+            res = planner.plan(scene, group, rng=rng, avoid=avoid)
         if failures is not None and not res.found:
             seen.append(FailedGroup(tuple(res.group), around, res))
         decision.plans.append(res)
@@ -255,20 +243,17 @@ def next_pick(
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
         decision.partial, decision.expected = True, tuple(best[1])
     if decision.status != "grasp" and last_resort and planner.config.max_physics:
-        _last_resort(scene, planner, decision, rng, avoid, partial_lifts, witnesses)
+        _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
     decision.planning_time = time.perf_counter() - t0
     return decision
 
 
-def _last_resort(
-    scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts, witnesses
-) -> None:
+def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
     """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
     skipping the candidates already simulated (a remembered plan simulated none now); takes
-    the first grasp found, or with ``partial_lifts`` the first partial lift. ``witnesses``:
-    the extra candidates each group was planned with."""
+    the first grasp found, or with ``partial_lifts`` the first partial lift."""
     deeper = copy.copy(planner)
     spent = 0
     for first in list(decision.plans):
@@ -277,14 +262,7 @@ def _last_resort(
         deeper.config = replace(
             planner.config, max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent)
         )
-        res = deeper.plan(
-            scene,
-            first.group,
-            rng=rng,
-            avoid=avoid,
-            skip=first.tested_indices,
-            extra=witnesses.get(tuple(first.group)),
-        )
+        res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=first.tested_indices)
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested

@@ -134,15 +134,12 @@ class GraspPlanner:
         method: str | None = None,
         avoid=(),
         skip=(),
-        extra=None,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
-        goes on where the earlier one stopped. ``extra``: grasps (an (m, 3) array) added to the
-        generated candidates, after them, and ranked and filtered with them (the grasps that
-        formed a conditions group); a later plan given ``skip`` must be given the same."""
+        goes on where the earlier one stopped."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -161,8 +158,6 @@ class GraspPlanner:
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
         )
-        if extra is not None and len(extra):
-            cands = np.concatenate([cands.reshape(-1, 3), np.asarray(extra, dtype=float).reshape(-1, 3)])
         margin = None
         if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
             final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
