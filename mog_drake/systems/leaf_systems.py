@@ -21,7 +21,7 @@ from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import DEFAULT_GROUP_RADIUS
-from mog_drake.perception import Perceiver, PerceptionConfig
+from mog_drake.perception import Perceiver
 from mog_drake.planning.picking import PickDecision, next_pick
 
 
@@ -55,20 +55,12 @@ class Decision(_Immutable):
 
 
 class PerceptionSystem(LeafSystem):
-    """camera.rgb_image, camera.depth_image, request -> scene (a perceived Scene)."""
+    """camera.rgb_image, camera.depth_image, request -> scene (a perceived Scene).
+    ``perceiver``: what turns the images into a scene (e.g. `Scenario.perceiver`)."""
 
-    def __init__(
-        self,
-        camera,
-        table,
-        library=None,
-        config: PerceptionConfig | None = None,
-        period: float = 0.01,
-        ignore=(),
-        reach=None,
-    ):
+    def __init__(self, camera, perceiver: Perceiver, period: float = 0.01):
         super().__init__()
-        self._perceiver = Perceiver(library, config, table, ignore, reach)
+        self._perceiver = perceiver
         self._X_WC = camera.X_WC().GetAsMatrix4()
         self._K = camera.intrinsics()
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))

@@ -65,13 +65,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     builder.AddNamedSystem("station", station)
     perception = builder.AddNamedSystem(
         "perception",
-        PerceptionSystem(
-            scenario.camera,
-            scenario.table,
-            library,
-            ignore=scenario.perception_ignore(),
-            reach=scenario.perception_reach(),
-        ),
+        PerceptionSystem(scenario.camera, scenario.perceiver(library)),
     )
     planner = make_planner(scenario, verifier)
     planner_sys = builder.AddNamedSystem(
