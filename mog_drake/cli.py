@@ -530,19 +530,40 @@ def _left(run):
 
 
 def cmd_gripper(args) -> int:
-    """Bench check of a Robotiq 2F-85 over the URCap socket."""
-    from mog_drake.hardware.robotiq import RobotiqClient
+    """Bench check of a Robotiq 2F-85 over the URCap socket. A move waits for its end and says
+    whether it stopped on an object; a fault, an ignored command, a move that does not end or
+    a peer that talks nonsense ends in one line and exit 3."""
+    from mog_drake.hardware.robotiq import RobotiqCalibration, RobotiqClient
 
-    with RobotiqClient(args.ip, args.port, timeout=args.timeout) as g:
+    cal = RobotiqCalibration()
+    # Every argument is checked before anything is sent.
+    try:
+        cal.force_to_byte(args.force)
+    except MogError as e:
+        raise MogError(f"--force: {e}") from None
+    for name in ("timeout", "move_timeout"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise MogError(f"--{name.replace('_', '-')} must be a positive number of seconds, got {v}")
+    with RobotiqClient(
+        args.ip,
+        args.port,
+        timeout=args.timeout,
+        calibration=cal,
+        activation_timeout=args.move_timeout,
+        move_timeout=args.move_timeout,
+    ) as g:
         if args.action in ("open", "close"):
             g.activate()
-            g.move(0.085 if args.action == "open" else 0.0, force=args.force)
-        status = g.status()
+            status = g.move(cal.stroke if args.action == "open" else 0.0, force=args.force)
+        else:
+            status = g.status()
+            g.check_fault("in the status read")
     _emit(
         args,
         status,
-        f"gripper at {args.ip}:{args.port}: {args.action} ok; width {status['width'] * 1e3:.1f} mm, "
-        f"object {'held' if status['holding'] else 'none'} (OBJ {status['object']})",
+        f"gripper at {args.ip}:{args.port}: {args.action}: {status['object_text']}; "
+        f"width {status['width'] * 1e3:.1f} mm (POS {status['pos']}, OBJ {status['object']}, no fault)",
     )
     return 0
 
@@ -853,7 +874,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--ip", required=True)
     sp.add_argument("--port", type=int, default=63352)
     sp.add_argument("--force", type=float, default=40.0, help="N (20-235)")
-    sp.add_argument("--timeout", type=float, default=2.0, help="s to wait for each reply")
+    sp.add_argument("--timeout", type=float, default=2.0, help="s, hard deadline of each request")
+    sp.add_argument("--move-timeout", type=float, default=5.0, help="s for the activation or a move to end")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_gripper)
 
@@ -908,9 +930,9 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     try:
         return int(args.func(args) or 0)
-    except MogError as e:
+    except MogError as e:  # HardwareFault included: exit 3
         print(f"mog-drake: error: {e}", file=sys.stderr)
-        return 2
+        return e.exit_code
     except KeyboardInterrupt:
         print("mog-drake: interrupted", file=sys.stderr)
         return 130

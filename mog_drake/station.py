@@ -209,9 +209,21 @@ class HardwareSpec:
     replay_frame_period: float = 1e9  # s per recorded frame (default: hold the first)
     dry_run: bool = False  # log every command instead of sending it
     command_log: str = ""  # dry run: JSON-lines file (default: stderr)
+    # Palm box (xmin, xmax, ymin, ymax, zmin, zmax; m, table frame); the fingertips stay inside
+    # it in x and y, and above the table top.
     workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
-    max_joint_speed: float = 1.5  # rad/s: a command implying more is refused
+    max_joint_speed: float = 1.5  # rad/s in wall-clock time: a target implying more is refused
+    # s of motion at max_joint_speed the stream may run ahead of the wall clock (PC jitter).
+    burst_window: float = 0.03
+    # m: every link frame (shoulder, elbow, wrists, flange) at least this far above the table top
+    # (about a link's radius; the pick's motions keep 0.15 m or more).
+    link_clearance: float = 0.05
+    link_box: list[float] = field(default_factory=list)  # optional box for every link frame
     servo_period: float = 0.01  # s, servoJ streaming period (the controller's period)
+    stale_after: float = 0.1  # s without a new RTDE timestamp before the robot state is stale
+    gripper_timeout: float = 1.0  # s, hard deadline of one gripper request
+    gripper_activation_timeout: float = 5.0  # s for the gripper's activation (STA 3)
+    gripper_move_timeout: float = 5.0  # s for a gripper move to end (OBJ non-zero)
 
 
 @dataclass

@@ -1,10 +1,13 @@
 """Hardware drivers as LeafSystems, exporting the simulated station's port names.
 
-* UR5 over ur_rtde: measured joints polled in periodic discrete updates; commands streamed with
-  servoJ in periodic publish events, each checked first (joint limits, joint speed, the palm
-  inside a workspace box). A refused command, a lost connection or a protective stop latches a
-  fault: the arm is stopped, the gripper will not open, and the Diagram halts with the reason.
-* Robotiq 2F-85 over the URCap socket (mog_drake.hardware.robotiq).
+* UR5 over ur_rtde: the robot's health and joints polled in periodic discrete updates; targets
+  streamed with servoJ in periodic publish events, each checked first (joint limits; joint
+  speed over the wall-clock time since the last target sent; palm and fingertips inside the
+  workspace box; every link frame above the table). A refused target, a lost connection, a
+  stale robot state, a stop or a safety mode other than normal latches a fault: the arm is
+  stopped, the gripper will not open, and the Diagram halts with a one-line reason.
+* Robotiq 2F-85 over the URCap socket (mog_drake.hardware.robotiq): status and fault register
+  polled, moves confirmed.
 * Cameras: recorded RGB-D frames from disk (offline runs, tests), or an Intel RealSense.
 
 `dry_run`: nothing is sent to the arm or the gripper; every command that would be sent is logged
@@ -16,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,11 +29,15 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
-from mog_drake.sim.ur5 import JOINT_LIMIT, forward_kinematics
+from mog_drake.sim.ur5 import DH_A, DH_ALPHA, DH_D, JOINT_LIMIT, dh_transform
+
+#: The UR5's DH frames 1..6, by the joint they carry.
+LINK_FRAMES = ("shoulder", "elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
 
 
 class FaultLatch:
-    """Shared by the drivers: the first fault wins and stays."""
+    """Shared by the drivers: the first fault wins and stays. Reasons name their device
+    (``UR5: ...``, ``gripper: ...``)."""
 
     def __init__(self):
         self.reason = ""
@@ -42,31 +50,95 @@ class FaultLatch:
         return bool(self.reason)
 
 
+# getSafetyMode() and getRobotMode() values of the UR controller (RTDE).
+SAFETY_MODES = {
+    1: "normal",
+    2: "reduced",
+    3: "protective stop",
+    4: "recovery",
+    5: "safeguard stop",
+    6: "system emergency stop",
+    7: "robot emergency stop",
+    8: "violation",
+    9: "fault",
+    10: "validate joint id",
+    11: "undefined safety mode",
+    12: "automatic mode safeguard stop",
+    13: "system three position enabling stop",
+}
+SAFETY_OK = (1, 2)  # normal, reduced
+ROBOT_MODES = {
+    -1: "no controller",
+    0: "disconnected",
+    1: "confirm safety",
+    2: "booting",
+    3: "power off",
+    4: "power on",
+    5: "idle",
+    6: "backdrive",
+    7: "running",
+    8: "updating firmware",
+}
+ROBOT_RUNNING = 7
+
+
 @dataclass
 class SafetyLimits:
     """What a command must satisfy before it is sent."""
 
-    workspace: list[float] = field(
-        default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65]
-    )  # palm box, m
-    max_joint_speed: float = 1.5  # rad/s
+    # Box (xmin, xmax, ymin, ymax, zmin, zmax; m, table frame) the palm and fingertips stay in.
+    workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
+    max_joint_speed: float = 1.5  # rad/s, in wall-clock time on hardware
     joint_margin: float = 0.05  # rad inside the +-2 pi limits
+    table_top: float = 0.0  # m, z of the table top
+    # Every link frame (shoulder, elbow, wrists, flange) at least this far above the table top.
+    link_clearance: float = 0.05
+    # Optional box every link frame stays in (empty: none).
+    link_box: list[float] = field(default_factory=list)
+    # Slack of the speed check: the stream may run ahead of max_joint_speed by at most this
+    # many seconds of motion at that speed (absorbs the jitter of a non-real-time PC).
+    burst_window: float = 0.03
 
 
 class SafetyMonitor:
-    """Checks joint commands; returns "" when safe, else the reason."""
+    """Checks one joint command against the joint limits and the workspace; returns "" when
+    safe, else the reason. (Speed is `MotionBudget`'s: it needs the time between commands.)"""
 
-    def __init__(self, limits: SafetyLimits, base_xyyaw, flange_to_palm: float):
+    def __init__(
+        self,
+        limits: SafetyLimits,
+        base_xyyaw,
+        flange_to_palm: float,
+        finger_depth: float = 0.040,
+        finger_span: float = 0.085,
+    ):
         self.limits = limits
         bx, by, byaw = base_xyyaw
         c, s = math.cos(byaw), math.sin(byaw)
         self._base = np.array([[c, -s, 0, bx], [s, c, 0, by], [0, 0, 1, 0], [0, 0, 0, 1.0]])
         self._palm = np.array([[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, flange_to_palm], [0, 0, 0, 1.0]])
+        # Fingertips in the palm frame: the plates' centres at the open span, below the palm.
+        h = finger_span / 2
+        self._tips = np.array([[-h, 0.0, -finger_depth, 1.0], [h, 0.0, -finger_depth, 1.0]]).T
+
+    def frames(self, q) -> dict[str, np.ndarray]:
+        """Origins (table frame) of the shoulder, elbow, wrists, flange and palm, and the
+        two fingertips."""
+        T = self._base.copy()
+        out = {}
+        for i, name in enumerate(LINK_FRAMES):
+            T = T @ dh_transform(q[i], DH_D[i], DH_A[i], DH_ALPHA[i])
+            out[name] = T[:3, 3].copy()
+        palm = T @ self._palm
+        out["palm"] = palm[:3, 3]
+        tips = (palm @ self._tips)[:3].T
+        out["left fingertip"], out["right fingertip"] = tips[0], tips[1]
+        return out
 
     def palm_position(self, q) -> np.ndarray:
-        return (self._base @ forward_kinematics(q) @ self._palm)[:3, 3]
+        return self.frames(q)["palm"]
 
-    def check(self, q_cmd, q_prev=None, dt: float | None = None) -> str:
+    def check(self, q_cmd) -> str:
         q = np.asarray(q_cmd, float)
         if q.shape != (6,) or not np.all(np.isfinite(q)):
             return f"joint command {q.tolist()} is not six finite numbers"
@@ -74,15 +146,67 @@ class SafetyMonitor:
         bad = np.flatnonzero(np.abs(q) > lim)
         if len(bad):
             return f"joint {bad[0] + 1} command {q[bad[0]]:.3f} rad is beyond the limit +-{lim:.3f} rad"
-        p = self.palm_position(q)
+        frames = self.frames(q)
         x0, x1, y0, y1, z0, z1 = self.limits.workspace
-        if not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1 and z0 <= p[2] <= z1):
-            return f"gripper position {np.round(p, 3).tolist()} m is outside the workspace box {self.limits.workspace}"
-        if q_prev is not None and dt:
-            speed = np.abs(q - np.asarray(q_prev, float)) / dt
-            j = int(np.argmax(speed))
-            if speed[j] > self.limits.max_joint_speed:
-                return f"joint {j + 1} would move at {speed[j]:.2f} rad/s, above the {self.limits.max_joint_speed} rad/s limit"
+        # The palm inside the box; the fingertips inside it in x and y and under its top (their
+        # floor is the table top, below).
+        for name in ("palm", "left fingertip", "right fingertip"):
+            p = frames[name]
+            zmin = z0 if name == "palm" else -np.inf
+            if not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1 and zmin <= p[2] <= z1):
+                return f"{name} at {np.round(p, 3).tolist()} m is outside the workspace box {self.limits.workspace}"
+        top = self.limits.table_top
+        for name, p in frames.items():
+            floor = top if name.endswith("fingertip") or name == "palm" else top + self.limits.link_clearance
+            if p[2] < floor:
+                return f"{name} at {np.round(p, 3).tolist()} m is {floor - p[2]:.3f} m below its floor z = {floor:.3f} m (the table top {top:g} m)"
+        if self.limits.link_box:
+            x0, x1, y0, y1, z0, z1 = self.limits.link_box
+            for name in LINK_FRAMES:
+                p = frames[name]
+                if not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1 and z0 <= p[2] <= z1):
+                    return f"{name} at {np.round(p, 3).tolist()} m is outside the link box {self.limits.link_box}"
+        return ""
+
+
+class MotionBudget:
+    """The speed check, per joint, over the time that really passed (a leaky bucket).
+
+    Each joint earns ``v_max`` rad per second of elapsed time, up to ``v_max * window`` saved,
+    and every command spends what it moves. So over any interval [t1, t2] the commands sent
+    move a joint by at most ``v_max (t2 - t1) + v_max * window``, whatever their timing: a burst
+    of targets (the Simulator catching up with the wall clock), or a jump after a pause, is
+    refused once it has used the small saved slack. A command that would overdraw is never sent.
+    """
+
+    def __init__(self, v_max: float, window: float):
+        self.v_max, self.window = v_max, window
+        self.q: np.ndarray | None = None
+        self.t = 0.0
+        self.saved = np.zeros(6)
+
+    def start(self, q, t: float) -> None:
+        self.q, self.t = np.asarray(q, float).copy(), t
+        self.saved = np.full(6, self.v_max * self.window)
+
+    def admit(self, q, t: float) -> str:
+        """Spends the motion to ``q`` at time ``t`` if the budget allows; else the reason."""
+        q = np.asarray(q, float)
+        if self.q is None:
+            self.start(q, t)
+            return ""
+        cap = self.v_max * self.window
+        saved = np.minimum(self.saved + self.v_max * max(t - self.t, 0.0), cap)
+        step = np.abs(q - self.q)
+        over = step - saved
+        j = int(np.argmax(over))
+        if over[j] > 1e-9:
+            dt = max(t - self.t, 1e-9)
+            return (
+                f"joint {j + 1} would move {step[j]:.4f} rad {dt:.4f} s after the last target sent "
+                f"({step[j] / dt:.2f} rad/s), above the {self.v_max} rad/s limit"
+            )
+        self.saved, self.q, self.t = saved - step, q.copy(), t
         return ""
 
 
@@ -96,9 +220,53 @@ class CommandLog:
         self._f.write(json.dumps({"device": device, "t": round(t, 4), **fields}) + "\n")
         self._f.flush()
 
+    def close(self) -> None:
+        if self._f is not sys.stderr:
+            self._f.close()
+
+
+def robot_health(control, receive) -> str:
+    """ "" when both RTDE interfaces are connected and the robot runs in a normal or reduced
+    safety mode; else the reason. ur_rtde reports these by value, never by exception."""
+    try:
+        if not receive.isConnected():
+            return "connection lost: the RTDE receive interface is disconnected"
+        if not control.isConnected():
+            return "connection lost: the RTDE control interface is disconnected"
+        if receive.isEmergencyStopped():
+            return "emergency stop"
+        if receive.isProtectiveStopped():
+            return "protective stop"
+        mode = int(receive.getSafetyMode())
+        if mode not in SAFETY_OK:
+            return f"safety mode {mode} ({SAFETY_MODES.get(mode, 'unknown')})"
+        robot = int(receive.getRobotMode())
+        if robot != ROBOT_RUNNING:
+            return f"robot mode {robot} ({ROBOT_MODES.get(robot, 'unknown')}), not running"
+    except Exception as e:
+        return f"connection lost ({type(e).__name__}: {e})"
+    return ""
+
 
 class UR5Driver(LeafSystem):
-    """ur5.position -> servoJ (checked); getActualQ -> ur5.position_measured."""
+    """ur5.position -> servoJ (checked); getActualQ -> ur5.position_measured.
+
+    The driver is the last line of defence and assumes nothing about what is upstream:
+
+    * every target passes `SafetyMonitor` (joint limits, palm and fingertips in the workspace,
+      every link frame above the table) and `MotionBudget` (joint speed over the time that
+      really passed since the last target sent: the wall clock on hardware, simulated time in
+      a dry run). A target that fails is refused, never sent, and latches a fault;
+    * each poll reads the robot's health from ur_rtde's own signals, which report by value,
+      not by exception: isConnected() of both interfaces, emergency and protective stop, the
+      safety mode, the robot mode, and whether the receive timestamp still advances (a lost
+      link leaves getActualQ returning its last cached values);
+    * servoJ's return value: False is a refusal by the controller, and a fault;
+    * on a fault the arm is stopped (servoStop) and the Diagram halts with a one-line reason.
+
+    Targets are streamed every period, changed or not (a servo stream is continuous), with
+    servoJ's ``time`` set to the time since the last target sent.
+    """
 
     def __init__(
         self,
@@ -110,71 +278,121 @@ class UR5Driver(LeafSystem):
         period: float = 0.008,
         dry_run: bool = False,
         log: CommandLog | None = None,
-        servo=(0.5, 0.5, 0.1, 300.0),
+        servo=(0.1, 300.0),
+        clock=time.monotonic,
+        stale_after: float = 0.1,
     ):
         super().__init__()
         self._control, self._receive = control, receive
         self._safety, self._faults = safety, faults
         self._period, self._dry = period, dry_run
         self._log = log or CommandLog()
-        self._servo = servo  # speed, acceleration, lookahead time, gain (servoJ's arguments)
+        self._servo = servo  # lookahead time (s), gain: servoJ's arguments
+        self._clock = clock
+        self._stale_after = stale_after
+        self._budget = MotionBudget(safety.limits.max_joint_speed, safety.limits.burst_window)
         self._cmd = self.DeclareVectorInputPort("ur5.position", 6)
         self._q = self.DeclareDiscreteState(np.asarray(q_init, float))
-        self._last = {"q": None, "t": None}
+        # Device bookkeeping (the last target sent, the receive timestamp) lives with the
+        # device, not in the Context: it describes the robot, which no Context can rewind.
+        self._last = {"q": None, "t": None, "logged": None, "stopped": False}
+        self._stamp = {"ts": None, "since": None}
         self.DeclareStateOutputPort("ur5.position_measured", self._q)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
 
-    def _fail(self, reason: str):
-        self._faults.trip(reason)
-        if not self._dry:
-            try:
-                self._control.servoStop()
-            except Exception:  # the connection may be what failed
-                pass
-        return EventStatus.Failed(None, f"UR5: {self._faults.reason}")
+    # --- faults and the end of a run -----------------------------------------------------
+    def stop(self) -> None:
+        """Stops the arm (servoStop), once; safe to call on a lost connection."""
+        if self._dry or self._last["stopped"]:
+            return
+        self._last["stopped"] = True
+        try:
+            self._control.servoStop()
+        except Exception:  # the connection may be what failed
+            pass
 
+    def _fail(self, reason: str):
+        self._faults.trip(f"UR5: {reason}")
+        self.stop()
+        return EventStatus.Failed(None, self._faults.reason)
+
+    def health(self) -> str:
+        """ "" when the robot is connected, running and its state fresh; else the reason."""
+        reason = robot_health(self._control, self._receive)
+        if reason:
+            return reason
+        try:
+            ts, now = float(self._receive.getTimestamp()), self._clock()
+        except Exception as e:
+            return f"connection lost ({type(e).__name__}: {e})"
+        if ts != self._stamp["ts"]:
+            self._stamp.update(ts=ts, since=now)
+        elif now - self._stamp["since"] > self._stale_after:
+            return (
+                f"robot state is stale: the RTDE timestamp has not advanced for "
+                f"{now - self._stamp['since']:.2f} s"
+            )
+        return ""
+
+    # --- events ---------------------------------------------------------------------------
     def _poll(self, context, discrete_state):
         if self._faults:
-            return EventStatus.Failed(None, f"UR5: {self._faults.reason}")
+            self.stop()
+            return EventStatus.Failed(None, self._faults.reason)
         if self._dry:
             if self._last["q"] is not None:
                 discrete_state.get_mutable_vector(self._q).SetFromVector(self._last["q"])
             return EventStatus.Succeeded()
+        reason = self.health()
+        if reason:
+            return self._fail(reason)
         try:
-            if self._receive.isProtectiveStopped():
-                return self._fail("protective stop")
             q = np.asarray(self._receive.getActualQ(), float)
         except Exception as e:
             return self._fail(f"connection lost ({type(e).__name__}: {e})")
+        if q.shape != (6,) or not np.all(np.isfinite(q)):
+            return self._fail(f"getActualQ returned {q.tolist()}, not six finite numbers")
         discrete_state.get_mutable_vector(self._q).SetFromVector(q)
         return EventStatus.Succeeded()
 
     def _send(self, context):
         if self._faults:
-            return EventStatus.Failed(None, f"UR5: {self._faults.reason}")
+            self.stop()
+            return EventStatus.Failed(None, self._faults.reason)
         q = np.asarray(self._cmd.Eval(context), float)
-        t = context.get_time()
-        prev = self._last["q"] if self._last["q"] is not None else context.get_discrete_state(self._q).value()
-        dt = (t - self._last["t"]) if self._last["t"] is not None else None
-        if self._last["q"] is not None and np.allclose(q, self._last["q"], atol=1e-6):
-            return EventStatus.Succeeded()
-        reason = self._safety.check(q, prev, dt if dt else self._period)
+        now = context.get_time() if self._dry else self._clock()
+        if self._budget.q is None:
+            # The first target is measured against where the arm is.
+            self._budget.start(context.get_discrete_state(self._q).value(), now)
+        reason = self._safety.check(q) or self._budget.admit(q, now)
         if reason:
             return self._fail(f"refused command: {reason}")
         if self._dry:
-            self._log.write("ur5", t, servoJ=[round(v, 5) for v in q])
+            if self._last["logged"] is None or not np.allclose(q, self._last["logged"], atol=1e-6):
+                self._log.write("ur5", now, servoJ=[round(v, 5) for v in q])
+                self._last["logged"] = q
         else:
+            dt = self._period if self._last["t"] is None else now - self._last["t"]
+            servo_time = min(max(dt, 0.002), 3 * self._period)
             try:
-                self._control.servoJ(q.tolist(), *self._servo[:2], self._period, *self._servo[2:])
+                ok = self._control.servoJ(q.tolist(), 0.5, 0.5, servo_time, *self._servo)
             except Exception as e:
                 return self._fail(f"connection lost ({type(e).__name__}: {e})")
-        self._last.update(q=q, t=t)
+            if not ok:
+                return self._fail("servoJ returned False: the controller did not take the target")
+        self._last.update(q=q, t=now)
         return EventStatus.Succeeded()
 
 
 class RobotiqDriver(LeafSystem):
-    """gripper.position (inner opening, m) -> move commands; status -> gripper.state_measured."""
+    """gripper.position (inner opening, m) -> moves; status -> gripper.state_measured.
+
+    A changed width is sent as one move (`RobotiqClient.command`, which reads FLT first); each
+    poll reads POS, OBJ, FLT and PRE. A fault code, a command the gripper did not take (PRE)
+    or a move that does not end within ``move_timeout`` latches a fault. After any fault the
+    jaws never open again: whatever is held stays held.
+    """
 
     def __init__(
         self,
@@ -186,18 +404,25 @@ class RobotiqDriver(LeafSystem):
         dry_run: bool = False,
         log: CommandLog | None = None,
         initial_width: float = 0.075,
+        move_timeout: float = 5.0,
+        clock=time.monotonic,
     ):
         super().__init__()
         self._client, self._faults = client, faults
         self._force, self._speed, self._dry = force, speed, dry_run
         self._log = log or CommandLog()
+        self._move_timeout, self._clock = move_timeout, clock
         self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
         self._state = self.DeclareDiscreteState(np.array([initial_width, 0.0]))
-        self._sent = {"width": None}
+        self._sent = {"width": None, "pos": None, "at": None}
         self.DeclareStateOutputPort("gripper.state_measured", self._state)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
         self._period = period
+
+    def _fail(self, reason: str):
+        self._faults.trip(reason if reason.startswith("gripper:") else f"gripper: {reason}")
+        return EventStatus.Failed(None, self._faults.reason)
 
     def _poll(self, context, discrete_state):
         old = context.get_discrete_state(self._state).value()
@@ -205,10 +430,22 @@ class RobotiqDriver(LeafSystem):
             w = self._sent["width"] if self._sent["width"] is not None else old[0]
         else:
             try:
-                w = self._client.status()["width"]
+                s = self._client.status()
             except MogError as e:
-                self._faults.trip(f"gripper: {e}")
-                return EventStatus.Failed(None, f"Robotiq: {e}")
+                return self._fail(str(e))
+            if s["fault"]:
+                from mog_drake.hardware.robotiq import fault_text
+
+                return self._fail(fault_text(s["fault"]))
+            if self._sent["pos"] is not None and (s["pre"] != self._sent["pos"] or s["moving"]):
+                waited = self._clock() - self._sent["at"]
+                if waited > self._move_timeout:
+                    if s["pre"] != self._sent["pos"]:
+                        return self._fail(
+                            f"the gripper did not take the command: PRE {s['pre']}, expected {self._sent['pos']}"
+                        )
+                    return self._fail(f"still moving {waited:.1f} s after the command (OBJ 0)")
+            w = s["width"]
         discrete_state.get_mutable_vector(self._state).SetFromVector([w, (w - old[0]) / self._period])
         return EventStatus.Succeeded()
 
@@ -223,10 +460,10 @@ class RobotiqDriver(LeafSystem):
             self._log.write("robotiq", context.get_time(), width=round(w, 4), force=self._force)
         else:
             try:
-                self._client.move(w, self._force, self._speed)
+                pos = self._client.command(w, self._force, self._speed)
             except MogError as e:
-                self._faults.trip(f"gripper: {e}")
-                return EventStatus.Failed(None, f"Robotiq: {e}")
+                return self._fail(str(e))
+            self._sent.update(pos=pos, at=self._clock())
         self._sent["width"] = w
         return EventStatus.Succeeded()
 

@@ -1,26 +1,64 @@
 """Robotiq 2F-85 over the UR controller's URCap socket (TCP 63352, ASCII lines).
 
-    SET ACT 1 / SET GTO 1 / SET POS n / SET SPE n / SET FOR n   -> "ack"
-    GET POS / GET OBJ / GET STA                                  -> "POS n" / "OBJ n" / "STA n"
+    SET VAR n [VAR n ...]   -> "ack"      (several registers in one line are applied together)
+    GET VAR                 -> "VAR n"
 
-POS 0 is fully open (85 mm between the fingertips), 255 fully closed. OBJ: 0 moving,
-1 stopped on an object while opening, 2 stopped on an object while closing, 3 reached the
-target with no object.
+Registers (the 2F-85 manual): ACT activate; GTO go to the requested position; POS the position
+request when set, the fingers' position when read (0 open, 85 mm between the fingertips; 255
+closed); SPE speed; FOR force; status: STA (3 = activation complete), PRE (echo of the
+position request the gripper took), OBJ (0 moving, 1 stopped on an object while opening,
+2 stopped on an object while closing, 3 at the requested position with no object), FLT (0 no
+fault, else a fault code, `FAULTS`).
+
+Every request has a hard deadline, whatever the peer sends; every argument is checked before
+anything is sent; a move is one atomic SET and is confirmed by PRE; FLT is read before and
+after each move. A device error raises `RobotiqError` (a `HardwareFault`); a bad argument
+raises `MogError`.
 """
 
 from __future__ import annotations
 
+import math
 import socket
 import time
 from dataclasses import dataclass
 
-from mog_drake.errors import MogError
+from mog_drake.errors import HardwareFault, MogError
 
 DEFAULT_PORT = 63352
+MAX_REPLY = 64  # bytes: the longest real reply is a few characters
+
+# gFLT codes of the 2F-85 manual.
+FAULTS = {
+    0x05: "action delayed: the activation must complete first",
+    0x07: "the activation bit must be set before any action",
+    0x08: "maximum operating temperature exceeded",
+    0x09: "no communication for at least 1 s",
+    0x0A: "under the minimum operating voltage",
+    0x0B: "automatic release in progress",
+    0x0C: "internal fault",
+    0x0D: "activation fault",
+    0x0E: "overcurrent",
+    0x0F: "automatic release completed",
+}
+OBJ_TEXT = {
+    0: "moving",
+    1: "stopped on an object while opening",
+    2: "stopped on an object while closing",
+    3: "at the requested position, no object",
+}
 
 
-class RobotiqError(MogError):
-    """The gripper refused, answered late, answered nonsense, or hung up."""
+def fault_text(code: int) -> str:
+    return f"fault 0x{code:02X} ({FAULTS.get(code, 'unknown fault code')})"
+
+
+class RobotiqError(HardwareFault):
+    """The gripper reported a fault, refused or ignored a command, answered late or nonsense,
+    or hung up. Messages start with ``gripper:``."""
+
+    def __init__(self, message: str):
+        super().__init__(message if message.startswith("gripper:") else f"gripper: {message}")
 
 
 @dataclass
@@ -32,25 +70,30 @@ class RobotiqCalibration:
     speed_max: float = 0.150  # m/s at SPE 255
 
     def width_to_pos(self, width: float) -> int:
-        return int(round(255 * (1 - min(max(width, 0.0), self.stroke) / self.stroke)))
+        if not (math.isfinite(width) and 0.0 <= width <= self.stroke + 1e-9):
+            raise MogError(f"gripper width {width} m is outside the 2F-85's 0-{self.stroke} m")
+        return int(round(255 * (1 - min(width, self.stroke) / self.stroke)))
 
     def pos_to_width(self, pos: int) -> float:
         return self.stroke * (1 - pos / 255)
 
     def force_to_byte(self, force: float) -> int:
-        if not self.force_min <= force <= self.force_max:
-            raise RobotiqError(
-                f"grip force {force} N is outside the 2F-85's {self.force_min}-{self.force_max} N"
-            )
+        if not (math.isfinite(force) and self.force_min <= force <= self.force_max):
+            raise MogError(f"grip force {force} N is outside the 2F-85's {self.force_min}-{self.force_max} N")
         return int(round(255 * (force - self.force_min) / (self.force_max - self.force_min)))
 
     def speed_to_byte(self, speed: float) -> int:
+        if not (math.isfinite(speed) and speed > 0):
+            raise MogError(f"gripper speed {speed} m/s must be a positive number")
         s = min(max(speed, self.speed_min), self.speed_max)
         return int(round(255 * (s - self.speed_min) / (self.speed_max - self.speed_min)))
 
 
 class RobotiqClient:
-    """A blocking client with a timeout on every reply."""
+    """A blocking client. ``timeout``: the hard deadline of one request (s);
+    ``activation_timeout`` and ``move_timeout``: how long activation and a move may take."""
+
+    POLL = 0.02  # s between status reads while waiting
 
     def __init__(
         self,
@@ -58,14 +101,23 @@ class RobotiqClient:
         port: int = DEFAULT_PORT,
         timeout: float = 2.0,
         calibration: RobotiqCalibration | None = None,
+        activation_timeout: float = 5.0,
+        move_timeout: float = 5.0,
     ):
+        for name, v in (
+            ("timeout", timeout),
+            ("activation_timeout", activation_timeout),
+            ("move_timeout", move_timeout),
+        ):
+            if not (math.isfinite(v) and v > 0):
+                raise MogError(f"gripper {name} must be a positive number of seconds, got {v}")
         self.host, self.port, self.timeout = host, port, timeout
+        self.activation_timeout, self.move_timeout = activation_timeout, move_timeout
         self.cal = calibration or RobotiqCalibration()
         try:
             self._sock = socket.create_connection((host, port), timeout=timeout)
         except OSError as e:
             raise RobotiqError(f"cannot reach the gripper at {host}:{port}: {e.strerror or e}") from None
-        self._sock.settimeout(timeout)
         self._buf = b""
 
     def close(self) -> None:
@@ -80,27 +132,40 @@ class RobotiqClient:
     def __exit__(self, *exc):
         self.close()
 
+    # --- one request, one line back, within the deadline ----------------------------------
     def _request(self, line: str) -> str:
+        deadline = time.monotonic() + self.timeout
         try:
+            self._sock.settimeout(self.timeout)
             self._sock.sendall((line + "\n").encode())
-            deadline = time.monotonic() + self.timeout
             while b"\n" not in self._buf:
-                self._sock.settimeout(max(deadline - time.monotonic(), 1e-3))
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError
+                if len(self._buf) > MAX_REPLY:
+                    self._buf = b""
+                    raise RobotiqError(
+                        f"garbage in reply to '{line}': over {MAX_REPLY} bytes with no end of line"
+                    )
+                self._sock.settimeout(left)
                 chunk = self._sock.recv(256)
                 if not chunk:
                     raise RobotiqError(f"the gripper at {self.host}:{self.port} closed the connection")
                 self._buf += chunk
         except TimeoutError:
+            self._buf = b""
             raise RobotiqError(f"no reply to '{line}' within {self.timeout:g} s") from None
         except OSError as e:
             raise RobotiqError(f"connection to the gripper lost: {e.strerror or e}") from None
         reply, self._buf = self._buf.split(b"\n", 1)
         return reply.decode(errors="replace").strip()
 
-    def set(self, var: str, value: int) -> None:
-        reply = self._request(f"SET {var} {int(value)}")
+    def set(self, *pairs: tuple[str, int]) -> None:
+        """One atomic SET of one or more registers."""
+        line = "SET " + " ".join(f"{var} {int(value)}" for var, value in pairs)
+        reply = self._request(line)
         if reply != "ack":
-            raise RobotiqError(f"malformed reply {reply!r} to 'SET {var} {int(value)}' (expected 'ack')")
+            raise RobotiqError(f"malformed reply {reply!r} to '{line}' (expected 'ack')")
 
     def get(self, var: str) -> int:
         reply = self._request(f"GET {var}")
@@ -109,23 +174,72 @@ class RobotiqClient:
             raise RobotiqError(f"malformed reply {reply!r} to 'GET {var}'")
         return int(parts[1])
 
-    def activate(self) -> None:
-        self.set("ACT", 1)
+    def check_fault(self, when: str) -> None:
+        code = self.get("FLT")
+        if code:
+            raise RobotiqError(f"{fault_text(code)} {when}")
 
-    def move(self, width: float, force: float, speed: float = 0.15) -> None:
-        """Goes to a fingertip distance (m) with a force limit (N) and speed (m/s)."""
-        self.set("POS", self.cal.width_to_pos(width))
-        self.set("SPE", self.cal.speed_to_byte(speed))
-        self.set("FOR", self.cal.force_to_byte(force))
-        self.set("GTO", 1)
+    # --- activation and moves ---------------------------------------------------------------
+    def activate(self) -> None:
+        """Activates the gripper (it opens and closes once to calibrate) and waits for STA 3."""
+        if self.get("STA") == 3:
+            self.check_fault("after activation")
+            return
+        self.set(("ACT", 1))
+        deadline = time.monotonic() + self.activation_timeout
+        while (sta := self.get("STA")) != 3:
+            if time.monotonic() > deadline:
+                raise RobotiqError(
+                    f"activation did not complete within {self.activation_timeout:g} s (STA {sta}, expected 3)"
+                )
+            time.sleep(self.POLL)
+        self.check_fault("after activation")
+
+    def command(self, width: float, force: float, speed: float = 0.15) -> int:
+        """Starts a move to a fingertip distance (m) with a force limit (N) and speed (m/s);
+        returns the position request sent. Every argument is checked before anything is sent,
+        and FLT before the move."""
+        pos = self.cal.width_to_pos(width)
+        spe = self.cal.speed_to_byte(speed)
+        frc = self.cal.force_to_byte(force)
+        self.check_fault("before the move")
+        # Speed and force first, in the same line as the position and GTO: one atomic request.
+        self.set(("SPE", spe), ("FOR", frc), ("POS", pos), ("GTO", 1))
+        return pos
+
+    def wait(self, pos: int) -> dict:
+        """Waits for the move to ``pos`` to end: the request taken (PRE), then OBJ non-zero,
+        then FLT read. Returns the status."""
+        deadline = time.monotonic() + self.move_timeout
+        while True:
+            s = self.status()
+            if s["fault"]:
+                raise RobotiqError(f"{fault_text(s['fault'])} during the move")
+            if s["pre"] == pos and not s["moving"]:
+                break
+            if time.monotonic() > deadline:
+                if s["pre"] != pos:
+                    raise RobotiqError(
+                        f"the gripper did not take the command: PRE {s['pre']}, expected {pos}"
+                    )
+                raise RobotiqError(f"still moving {self.move_timeout:g} s after the command (OBJ 0)")
+            time.sleep(self.POLL)
+        self.check_fault("after the move")
+        return s
+
+    def move(self, width: float, force: float, speed: float = 0.15) -> dict:
+        """A move to its end: `command`, then `wait`."""
+        return self.wait(self.command(width, force, speed))
 
     def status(self) -> dict:
-        pos = self.get("POS")
-        obj = self.get("OBJ")
+        pos, obj, flt, pre = self.get("POS"), self.get("OBJ"), self.get("FLT"), self.get("PRE")
         return {
             "pos": pos,
             "width": self.cal.pos_to_width(pos),
             "object": obj,
+            "object_text": OBJ_TEXT.get(obj, f"OBJ {obj}"),
             "holding": obj in (1, 2),
             "moving": obj == 0,
+            "fault": flt,
+            "pre": pre,
         }

@@ -3,9 +3,11 @@ exporting the simulated station's port names (see mog_drake.station)."""
 
 from __future__ import annotations
 
+import math
+
 from pydrake.systems.framework import DiagramBuilder
 
-from mog_drake.errors import MogError
+from mog_drake.errors import HardwareFault, MogError
 from mog_drake.hardware.drivers import (
     CommandLog,
     FaultLatch,
@@ -15,20 +17,59 @@ from mog_drake.hardware.drivers import (
     SafetyLimits,
     SafetyMonitor,
     UR5Driver,
+    robot_health,
 )
 
 
 class HardwareHandles:
-    def __init__(self, faults, ur5, gripper, camera, scene=None):
+    def __init__(self, faults, ur5, gripper, camera, scene=None, connections=None, log=None):
         self.faults, self.ur5, self.gripper, self.camera = faults, ur5, gripper, camera
         self.scene = scene
         self.plant = None
+        self._connections = connections if connections is not None else []
+        self._log = log
+        self.closed = False
+
+    def shutdown(self) -> None:
+        """Stops the arm, then closes every connection; safe to call twice and after a fault.
+        The gripper is left as it is: whatever it holds stays held."""
+        if self.closed:
+            return
+        self.closed = True
+        if self.ur5 is not None:
+            self.ur5.stop()
+        for conn, methods in self._connections:
+            for m in methods:
+                try:
+                    getattr(conn, m)()
+                except Exception:  # a lost connection must not hide the others' closing
+                    pass
+        if self._log is not None:
+            self._log.close()
+
+
+def _check_spec(hw) -> None:
+    for name in ("max_joint_speed", "servo_period", "stale_after", "burst_window"):
+        v = getattr(hw, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise MogError(f"hardware.{name} must be a positive number, got {v!r}")
+    for name in ("workspace", "link_box"):
+        box = list(getattr(hw, name))
+        if name == "link_box" and not box:
+            continue
+        if (
+            len(box) != 6
+            or not all(math.isfinite(v) for v in box)
+            or not all(box[i] < box[i + 1] for i in (0, 2, 4))
+        ):
+            raise MogError(f"hardware.{name} must be [xmin, xmax, ymin, ymax, zmin, zmax], got {box}")
 
 
 def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_client=None):
     """Builds the hardware station. Clients may be injected (tests); otherwise they connect to
     ``scenario.hardware.robot_ip`` (ur_rtde, the Robotiq URCap socket). A dry run connects to
-    nothing and logs every command instead."""
+    nothing and logs every command instead. A robot that is not connected, running and in a
+    normal safety mode, or a gripper that does not activate, refuses to start with one line."""
     from mog_drake.station import FLANGE_TO_PALM
 
     hw = scenario.hardware
@@ -36,9 +77,11 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
         raise MogError(
             "the hardware station needs an explicit robot address (--robot-ip or hardware.robot_ip)"
         )
+    _check_spec(hw)
     faults = FaultLatch()
     log = CommandLog(hw.command_log) if hw.dry_run else None
     control, receive, gripper = rtde_control, rtde_receive, gripper_client
+    connections = []
     if not hw.dry_run:
         if control is None or receive is None:
             try:
@@ -47,23 +90,62 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
             except ImportError:
                 raise MogError("the UR5 driver needs ur_rtde: pip install 'mog_drake[hardware]'") from None
             try:
-                control = control or rtde_control.RTDEControlInterface(hw.robot_ip)
                 receive = receive or rtde_receive.RTDEReceiveInterface(hw.robot_ip)
+                control = control or rtde_control.RTDEControlInterface(hw.robot_ip)
             except RuntimeError as e:
-                raise MogError(f"cannot connect to the UR5 at {hw.robot_ip}: {e}") from None
-        if gripper is None:
-            from mog_drake.hardware.robotiq import RobotiqClient
-
-            gripper = RobotiqClient(hw.robot_ip, hw.gripper_port)
-        gripper.activate()
-    q_init = list(receive.getActualQ()) if (receive is not None and not hw.dry_run) else scenario.robot.home
+                raise HardwareFault(f"UR5: cannot connect to {hw.robot_ip}: {e}") from None
+        connections += [(control, ("stopScript", "disconnect")), (receive, ("disconnect",))]
     safety = SafetyMonitor(
-        SafetyLimits(list(hw.workspace), hw.max_joint_speed), scenario.robot.base, FLANGE_TO_PALM
+        SafetyLimits(
+            workspace=list(hw.workspace),
+            max_joint_speed=hw.max_joint_speed,
+            link_clearance=hw.link_clearance,
+            link_box=list(hw.link_box),
+            burst_window=hw.burst_window,
+        ),
+        scenario.robot.base,
+        FLANGE_TO_PALM,
+        finger_depth=scenario.gripper.finger_height,
     )
+    # The handles hold the list itself, so connections opened below are closed too.
+    handles = HardwareHandles(faults, None, None, None, connections=connections, log=log)
+    try:
+        q_init = scenario.robot.home
+        if not hw.dry_run:
+            if gripper is None:
+                from mog_drake.hardware.robotiq import RobotiqClient
+
+                gripper = RobotiqClient(
+                    hw.robot_ip,
+                    hw.gripper_port,
+                    timeout=hw.gripper_timeout,
+                    activation_timeout=hw.gripper_activation_timeout,
+                    move_timeout=hw.gripper_move_timeout,
+                )
+            connections.append((gripper, ("close",)))
+            reason = robot_health(control, receive)
+            if reason:
+                raise HardwareFault(f"UR5: not ready: {reason}")
+            q_init = list(receive.getActualQ())
+            reason = safety.check(q_init)
+            if reason:
+                raise HardwareFault(f"UR5: the arm starts where it may not be: {reason}")
+            gripper.activate()
+        diagram = _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_init, log)
+    except BaseException:
+        handles.shutdown()
+        raise
+    return diagram, handles
+
+
+def _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_init, log):
+    """The station's Diagram: the two drivers and the camera source, ports by the contract."""
     builder = DiagramBuilder()
-    ur5 = builder.AddNamedSystem(
-        "ur5_driver", UR5Driver(control, receive, safety, faults, q_init, hw.servo_period, hw.dry_run, log)
+    ur5_driver = UR5Driver(
+        control, receive, safety, faults, q_init, hw.servo_period, hw.dry_run, log, stale_after=hw.stale_after
     )
+    handles.ur5 = ur5_driver
+    ur5 = builder.AddNamedSystem("ur5_driver", ur5_driver)
     grip = builder.AddNamedSystem(
         "robotiq_driver",
         RobotiqDriver(
@@ -73,6 +155,7 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
             scenario.gripper.close_speed,
             dry_run=hw.dry_run,
             log=log,
+            move_timeout=hw.gripper_move_timeout,
         ),
     )
     if hw.camera == "replay":
@@ -91,4 +174,5 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
     builder.ExportOutput(camera.GetOutputPort("camera.depth_image"), "camera.depth_image")
     diagram = builder.Build()
     diagram.set_name("hardware_station")
-    return diagram, HardwareHandles(faults, ur5, grip, camera)
+    handles.gripper, handles.camera = grip, camera
+    return diagram

@@ -12,6 +12,7 @@ from pydrake.multibody.math import SpatialVelocity
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from mog_drake.errors import HardwareFault
 from mog_drake.perception import within_reach
 from mog_drake.planning.planner import GraspPlanner, PlannerConfig
 from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario, check_planner_spec
@@ -243,6 +244,37 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
     return out
 
 
+class WallClockPacer:
+    """Advances a Simulator no faster than the wall clock, and never lets it race to catch up.
+
+    Drake's ``set_target_realtime_rate`` runs flat out after a slow step until simulated time
+    has caught up with the wall clock; on hardware that sends the next motion in a burst. Here a
+    slow step's lost time is dropped instead: simulated time falls behind the wall clock for
+    good, and what follows runs at wall pace. Steps are ``step`` seconds (one servo period), so
+    at most one step of events follows a stall at once.
+    """
+
+    def __init__(self, simulator, step: float = 0.01, clock=time.monotonic, sleep=time.sleep):
+        self.sim, self.step, self.clock, self.sleep = simulator, step, clock, sleep
+        self.offset: float | None = None  # wall time minus simulated time
+        self.dropped = 0.0  # s of wall time the simulation fell behind (slow steps)
+
+    def advance_to(self, t_end: float) -> None:
+        ctx = self.sim.get_context()
+        while ctx.get_time() < t_end - 1e-12:
+            t_next = min(ctx.get_time() + self.step, t_end)
+            if self.offset is None:
+                self.offset = self.clock() - ctx.get_time()
+            wait = self.offset + t_next - self.clock()
+            if wait > 0:
+                self.sleep(wait)
+            self.sim.AdvanceTo(t_next)
+            late = self.clock() - (self.offset + t_next)
+            if late > self.step:
+                self.offset += late
+                self.dropped += late
+
+
 def run_pick(
     scenario: Scenario,
     scene=None,
@@ -256,14 +288,35 @@ def run_pick(
     """Runs the diagram until the table is clear, no grasp is found, or the time limit. In
     simulation each attempt is scored from ground truth (objects in the bin); on hardware there
     is no ground truth and ``picked`` is None. ``retire_binned`` (simulation): objects at rest
-    in the bin leave the physics (`BinRetirement`), which keeps a long run fast."""
+    in the bin leave the physics (`BinRetirement`), which keeps a long run fast. ``realtime``:
+    paced by the wall clock (`WallClockPacer`), as on hardware.
+
+    On the hardware station the arm is stopped and every connection closed at the end of the
+    run, on a fault and on Ctrl-C; a fault raises `HardwareFault` with its one-line reason."""
     t0 = time.perf_counter()
     diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
     handles = parts["handles"]
+    faults = getattr(handles, "faults", None)
+    hw = scenario.hardware
+    # A real arm runs at wall pace, whatever the caller asked: its drivers check speed in
+    # wall-clock time and would refuse a simulation running flat out.
+    realtime = realtime or (hw.enabled and not hw.dry_run)
+    try:
+        return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
+    except RuntimeError:
+        if faults:
+            raise HardwareFault(faults.reason) from None
+        raise
+    finally:
+        if hasattr(handles, "shutdown"):
+            handles.shutdown()
+
+
+def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
+    handles = parts["handles"]
     controller = parts["controller"]
     sim = Simulator(diagram)
-    if realtime:
-        sim.set_target_realtime_rate(1.0)
+    pacer = WallClockPacer(sim, step=scenario.hardware.servo_period) if realtime else None
     ctx = sim.get_mutable_context()
     ctrl_ctx = controller.GetMyContextFromRoot(ctx)
     scored = handles.plant is not None
@@ -278,7 +331,10 @@ def run_pick(
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
-        sim.AdvanceTo(ctx.get_time() + 0.25)
+        if pacer is not None:
+            pacer.advance_to(ctx.get_time() + 0.25)
+        else:
+            sim.AdvanceTo(ctx.get_time() + 0.25)
         if retire:
             retire.update(plant_ctx)
         s = controller.state(ctrl_ctx)
