@@ -336,7 +336,7 @@ def _cmd_eval(args) -> int:
             raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
         scenario = ""
         if args.scenario:
-            from mog_drake.station import load_scenario
+            from mog_drake.scenario import load_scenario
 
             load_scenario(args.scenario)  # refuses a bad file before anything runs
             scenario = Path(args.scenario).read_text()
@@ -432,17 +432,20 @@ def _cmd_eval(args) -> int:
 def _scenario(args):
     from dataclasses import replace
 
-    from mog_drake.station import load_scenario
+    from mog_drake.scenario import load_scenario
 
     sc = load_scenario(args.scenario)
     if args.seed is not None:
-        sc.scene = replace(sc.scene, seed=args.seed)
+        if hasattr(sc.scene, "seed"):
+            sc.scene = replace(sc.scene, seed=args.seed)
         sc.planner = replace(sc.planner, seed=args.seed)
     if getattr(args, "mode", None):
         if args.mode not in ("mog", "sog"):
             raise MogError(f"--mode must be mog or sog, got {args.mode!r}")
         sc.planner = replace(sc.planner, mode=args.mode)
     if getattr(args, "objects", None):
+        if not hasattr(sc.scene, "n_objects"):
+            raise MogError("--objects applies to a cluttered table (scene: !ClutteredScene)")
         sc.scene = replace(sc.scene, n_objects=args.objects)
     if getattr(args, "time_limit", None):
         sc.time_limit = args.time_limit
@@ -484,7 +487,7 @@ def cmd_pick(args) -> int:
 
     hw = sc.hardware.enabled
     if not args.json and not hw:
-        print(f"picking: {sc.scene.kind} table, seed {sc.scene.seed}, mode {sc.planner.mode}", flush=True)
+        print(f"picking: {sc.scene}, mode {sc.planner.mode}", flush=True)
     if hw and not args.json:
         print(
             f"hardware: UR5 at {sc.hardware.robot_ip or '(no address)'}"

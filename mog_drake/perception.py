@@ -17,10 +17,8 @@ outline and top height (``scene.meta["unrecognised"]``).
 Pure numpy and shapely: no Drake import (the Perception LeafSystem wraps this).
 """
 
-from __future__ import annotations
-
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
@@ -38,7 +36,7 @@ class PerceptionConfig:
     min_fraction: float = 0.35  # a cluster smaller than this share of a shape is noise
     unknown_area: float = 60e-6  # m^2: unexplained object points covering more are an unrecognised blob
     wall_margin: float = 0.004  # m around a fitted polygon where side-wall points are explained
-    shapes: tuple[str, ...] = ()  # shapes to look for (default: every library shape)
+    shapes: list[str] = field(default_factory=list)  # shapes to look for (default: every library shape)
     # A cluster holding three or more instances of one shape (touching, one colour and height)
     # is split from this many k-means seedings (two instances: from median splits along 6
     # directions, see _seedings); the split whose fits explain most of its points, less their

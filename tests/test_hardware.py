@@ -26,22 +26,15 @@ from mog_drake.hardware.drivers import (
     record_frame,
 )
 from mog_drake.hardware.robotiq import RobotiqClient
-from mog_drake.station import (
-    FLANGE_TO_PALM,
-    PORTS_IN,
-    PORTS_OUT,
-    HardwareSpec,
-    MakeStation,
-    Scenario,
-    SceneSpec,
-)
+from mog_drake.scenario import ClutteredScene, HardwareSpec, ReplaySource, Scenario
+from mog_drake.station import PORTS_IN, PORTS_OUT, MakeStation
 
 LIMITS = SafetyLimits()
 SLACK = LIMITS.max_joint_speed * LIMITS.burst_window + 1e-3  # rad; 1 mrad for the stamps' skew
 
 
 def _safety(sc, limits=None):
-    return SafetyMonitor(limits or SafetyLimits(), sc.robot.base, FLANGE_TO_PALM)
+    return SafetyMonitor(limits or SafetyLimits(), sc.robot.base)
 
 
 def _driver(sc, control, receive, faults=None, **kw):
@@ -119,7 +112,7 @@ def test_safety_monitor_accepts_the_workspace_and_refuses_below_the_table():
 
     sc = Scenario()
     mon = _safety(sc)
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, 1.0, 1.0)
+    m = ArmMotion(sc.robot.base, 1.0, 1.0)
     q = m.ik([0.1, 0.1, 0.042], 0.3, sc.robot.home)
     assert mon.check(q) == ""
     np.testing.assert_allclose(mon.palm_position(q), [0.1, 0.1, 0.042], atol=5e-4)
@@ -310,7 +303,7 @@ def test_gripper_driver_latches_gripper_faults(mode, expected):
 
 
 def test_station_refuses_to_start_without_a_robot_address():
-    sc = Scenario(hardware=HardwareSpec(enabled=True, camera="replay", replay_dir="."))
+    sc = Scenario(hardware=HardwareSpec(enabled=True, camera=ReplaySource(dir=".")))
     with pytest.raises(MogError, match="explicit robot address"):
         MakeStation(sc)
 
@@ -318,7 +311,7 @@ def test_station_refuses_to_start_without_a_robot_address():
 @pytest.fixture(scope="module")
 def replay_dir(tmp_path_factory):
     """One RGB-D frame of a 3-object table, rendered by the simulated station."""
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=5, n_objects=3))
+    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3))
     d, _ = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
@@ -333,7 +326,7 @@ def replay_dir(tmp_path_factory):
 
 
 def _hw(replay_dir, **kw):
-    return HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera="replay", replay_dir=str(replay_dir), **kw)
+    return HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera=ReplaySource(dir=str(replay_dir)), **kw)
 
 
 def test_station_refuses_a_robot_that_is_not_ready_and_closes_what_it_opened(replay_dir):
@@ -365,7 +358,7 @@ def test_full_pick_real_time_with_a_planner_slowed_by_2_s(replay_dir, monkeypatc
     command through the drivers to fakes that behave as ur_rtde and the URCap: one attempt end
     to end in real time. Nothing the robot received outran the joint-speed limit in wall-clock
     time, and the run ended with the arm stopped and every connection closed."""
-    import mog_drake.systems.leaf_systems as ls
+    import mog_drake.systems.planner as ls
     from mog_drake.systems.pick import run_pick
 
     real_next_pick = ls.next_pick
@@ -469,7 +462,7 @@ def test_a_refused_arm_command_ends_pick_with_one_line_and_exit_3(replay_dir, tm
         scenario = tmp_path / "hw.yaml"
         # The arm is planned at 3.14 rad/s; the driver allows 0.2: the first motion is refused.
         scenario.write_text(
-            f"hardware: {{enabled: true, camera: replay, replay_dir: '{replay_dir}', "
+            f"hardware: {{enabled: true, camera: !ReplaySource {{dir: '{replay_dir}'}}, "
             f"gripper_port: {srv.port}, max_joint_speed: 0.2}}\ntime_limit: 4.0\n"
         )
         code = main(["pick", "--scenario", str(scenario), "--robot-ip", "127.0.0.1"])

@@ -7,6 +7,7 @@ from conftest import make_scene
 from mog_drake.errors import MogError
 from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.polygon import axis_gap
+from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import METHODS, GraspPlanner, PlannerConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import row_scene
@@ -136,11 +137,11 @@ def test_next_pick_groups_by_the_conditions_when_asked():
     # the conditions group all four, and that group is planned first.
     scene = make_scene([("thin_bar", 0.02 * k, 0.0, math.pi / 2) for k in range(4)])
     v = FakeVerifier()
-    assert next_pick(scene, GraspPlanner(v), last_resort=False).plans[0].group == (0, 1, 2)
-    d = next_pick(scene, GraspPlanner(v), grouping="conditions", last_resort=False)
+    assert next_pick(scene, GraspPlanner(v), PlannerSpec(last_resort=False)).plans[0].group == (0, 1, 2)
+    d = next_pick(scene, GraspPlanner(v), PlannerSpec(grouping="conditions", last_resort=False))
     assert d.plans[0].group == (0, 1, 2, 3) and [p.group for p in d.plans][1:] == [(0,), (1,), (2,), (3,)]
     with pytest.raises(MogError, match="grouping must be one of"):
-        next_pick(scene, GraspPlanner(v), grouping="nearest")
+        next_pick(scene, GraspPlanner(v), PlannerSpec(grouping="nearest"))
 
 
 def test_next_pick_single_object_mode_plans_single_objects():
@@ -154,10 +155,10 @@ def test_next_pick_single_object_mode_plans_single_objects():
             return GraspResult(True, lifted=list(group))
 
     v = LiftsAnything()
-    d = next_pick(scene, GraspPlanner(v), mode="sog", rng=np.random.default_rng(0))
+    d = next_pick(scene, GraspPlanner(v), PlannerSpec(mode="sog"), rng=np.random.default_rng(0))
     assert d.status == "grasp" and len(d.group) == 1 and all(len(g) == 1 for g in v.asked)
     with pytest.raises(MogError, match="mode"):
-        next_pick(scene, GraspPlanner(v), mode="both")
+        next_pick(scene, GraspPlanner(v), PlannerSpec(mode="both"))
 
 
 def test_unrecognised_blobs_are_not_a_clear_table():
@@ -219,13 +220,13 @@ def test_last_resort_plans_deeper_before_giving_up():
     GraspPlanner(order, PlannerConfig("gp", max_physics=10)).plan(scene, (0,))
     v = FakeVerifier(good=[order.asked[5]])
     capped = GraspPlanner(v, PlannerConfig("gp", max_physics=4))
-    d = next_pick(scene, capped, "mog")
+    d = next_pick(scene, capped)
     assert d.status == "grasp" and d.last_resort and np.allclose(d.grasp, order.asked[5])
     assert d.physics_checks == 6 and np.array_equal(np.array(v.asked), np.array(order.asked[:6]))
     v.asked.clear()
-    assert next_pick(scene, capped, "mog", last_resort=False).status == "no_grasp" and len(v.asked) == 4
+    assert next_pick(scene, capped, PlannerSpec(last_resort=False)).status == "no_grasp" and len(v.asked) == 4
     v = FakeVerifier()  # no grasp at all: the last resort spends its checks, then gives up
-    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), "mog")
+    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)))
     assert d.status == "no_grasp" and not d.last_resort
     assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
 
@@ -261,7 +262,9 @@ def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     np.testing.assert_allclose(d.grasp, d.plans[0].candidate_grasps[d.plans[0].tested_indices[1]])
 
     v = LiftsTwoOnce()
-    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), partial_lifts=False)
+    d = next_pick(
+        scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), PlannerSpec(partial_lifts=False)
+    )
     assert d.status == "grasp" and not d.partial and len(d.group) == 1
 
 
@@ -296,7 +299,8 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
-    from mog_drake.systems.leaf_systems import Perceived, PlannerSystem
+    from mog_drake.systems.perception import Perceived
+    from mog_drake.systems.planner import PlannerSystem
 
     scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.15, 0.15, 0.0)])
 

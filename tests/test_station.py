@@ -6,21 +6,22 @@ import math
 import numpy as np
 import pytest
 
-from mog_drake.station import (
-    PORTS_IN,
-    PORTS_OUT,
-    SIM_ONLY_PORTS,
-    MakeStation,
+from mog_drake.scenario import (
+    ClutteredScene,
+    RowScene,
     Scenario,
-    SceneSpec,
+    SceneFile,
+    camera_intrinsics,
+    camera_pose,
+    camera_sees,
     load_scenario,
-    render_still,
 )
+from mog_drake.station import PORTS_IN, PORTS_OUT, SIM_ONLY_PORTS, MakeStation, render_still
 
 
 @pytest.fixture(scope="module")
 def station33():
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=11))
+    sc = Scenario(scene=ClutteredScene(seed=11))
     diagram, handles = MakeStation(sc)
     return sc, diagram, handles
 
@@ -38,7 +39,7 @@ def test_port_contract(station33):
 def test_arm_tracks_its_command_and_gripper_opens():
     from pydrake.systems.analysis import Simulator
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=2))
+    sc = Scenario(scene=ClutteredScene(seed=3, n_objects=2))
     d, _ = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     q1 = np.array(sc.robot.home) + [0.1, 0.1, -0.1, 0.1, 0.0, 0.3]
@@ -54,7 +55,7 @@ def test_jaws_close_at_the_gripper_speed_not_at_once():
     in the station is as fast as in the grasp verifier."""
     from pydrake.systems.analysis import Simulator
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=2))
+    sc = Scenario(scene=ClutteredScene(seed=3, n_objects=2))
     d, _ = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
@@ -77,7 +78,7 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
     sc, d, h = station33
     rgb, depth = render_still(sc, d)
     seen = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(
-        rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
+        rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera)
     )
     errs = pose_errors(seen, h.scene)
     assert not [e for e in errs if e.get("extra")]
@@ -101,11 +102,10 @@ def test_perception_accuracy_on_a_rendered_isrr33_table(station33):
 def test_approaches_the_clamped_spline_cannot_time_are_timed(grasp):
     """Grasps of picking sweeps (v4 tables 13 and 16, v5 table 11, sog) whose approach from
     the observe pose TOPP-RA could not time on the clamped C2 spline: the arm now takes them."""
-    from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion
 
     sc = Scenario()
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
     plan = m.pick_plan(np.array(grasp), sc.robot.home, sc.bin.center, sc.bin.depth)
     traj = plan["approach"]
     np.testing.assert_allclose(traj.value(0).ravel(), sc.robot.home, atol=1e-9)
@@ -118,11 +118,10 @@ def test_approaches_the_clamped_spline_cannot_time_are_timed(grasp):
 
 
 def test_ik_reaches_the_workspace_corners():
-    from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion
 
     sc = Scenario()
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
     for x, y, yaw in [
         (-0.15, -0.15, 0.0),
         (0.15, -0.15, 1.0),
@@ -158,12 +157,12 @@ def _controller_with_fixed_inputs():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
-    from mog_drake.station import FLANGE_TO_PALM
-    from mog_drake.systems.leaf_systems import ControllerSystem, Decision
+    from mog_drake.systems.controller import ControllerSystem
     from mog_drake.systems.motion import ArmMotion
+    from mog_drake.systems.planner import Decision
 
     sc = Scenario()
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
     c = ControllerSystem(m, sc.robot.home, sc.bin.center, sc.bin.depth)
     ctx = c.CreateDefaultContext()
     c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
@@ -176,7 +175,7 @@ def test_controller_state_machine_with_fixed_inputs():
     """Fed a fixed decision, the controller asks, moves, closes, lifts, goes to the bin, opens
     and returns, then asks again."""
     from mog_drake.planning.picking import PickDecision
-    from mog_drake.systems.leaf_systems import Decision
+    from mog_drake.systems.planner import Decision
 
     c, ctx, decision, sim = _controller_with_fixed_inputs()
     modes, grippers = [], []
@@ -204,7 +203,7 @@ def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():
     """A grasp the arm cannot reach is recorded and the controller observes again (the planner
     will not repeat it); only three unreachable grasps in a row end the run."""
     from mog_drake.planning.picking import PickDecision
-    from mog_drake.systems.leaf_systems import Decision
+    from mog_drake.systems.planner import Decision
 
     c, ctx, decision, sim = _controller_with_fixed_inputs()
     sim.AdvanceTo(0.5)
@@ -226,11 +225,10 @@ def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():
 def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
     """One failed solve of the drop pose (a poor seed) does not fail the attempt."""
     from mog_drake.errors import MogError
-    from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion
 
     sc = Scenario()
-    m = ArmMotion(sc.robot.base, FLANGE_TO_PALM, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
     real_ik, calls = m.ik, []
 
     def flaky(position, yaw, q_seed, **kw):
@@ -251,10 +249,10 @@ def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
 
 def test_scenario_yaml_overrides_defaults(tmp_path):
     f = tmp_path / "s.yaml"
-    f.write_text("scene: {kind: row, row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
+    f.write_text("scene: !RowScene {row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
     sc = load_scenario(str(f))
     assert (
-        sc.scene.kind == "row"
+        isinstance(sc.scene, RowScene)
         and sc.scene.row_class == 4
         and sc.planner.mode == "sog"
         and sc.time_limit == 30
@@ -271,7 +269,7 @@ def test_scenario_yaml_overrides_defaults(tmp_path):
 def test_end_to_end_pick_clears_a_small_table():
     from mog_drake.systems.pick import run_pick
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=5, n_objects=3), time_limit=60.0)
+    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3), time_limit=60.0)
     run = run_pick(sc)
     s = run.summary()
     assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
@@ -281,9 +279,9 @@ def test_end_to_end_pick_clears_a_small_table():
 
 
 def test_objects_outside_the_bin_are_located():
-    from mog_drake.systems.pick import where_left
+    from mog_drake.station.scoring import where_left
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=4))
+    sc = Scenario(scene=ClutteredScene(seed=3, n_objects=4))
     d, h = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     pc = h.plant.GetMyMutableContextFromRoot(ctx)
@@ -295,9 +293,11 @@ def test_objects_outside_the_bin_are_located():
     # The camera sees the whole perceived table (up to its corners) and nothing beyond its
     # field of view; its long side runs along y, past the bin's near wall.
     x0, x1, y0, y1 = sc.table
-    assert all(sc.camera.sees([x, y, 0.0]) for x in (x0 + 1e-3, x1 - 1e-3) for y in (y0 + 1e-3, y1 - 1e-3))
-    assert sc.camera.sees([0.0, 0.4, 0.0]) and not sc.camera.sees([0.32, 0.0, 0.0])
-    assert not sc.camera.sees([0.0, 0.42, 0.0]) and not sc.camera.sees([0.0, 0.0, 0.9])
+    assert all(
+        camera_sees(sc.camera, [x, y, 0.0]) for x in (x0 + 1e-3, x1 - 1e-3) for y in (y0 + 1e-3, y1 - 1e-3)
+    )
+    assert camera_sees(sc.camera, [0.0, 0.4, 0.0]) and not camera_sees(sc.camera, [0.32, 0.0, 0.0])
+    assert not camera_sees(sc.camera, [0.0, 0.42, 0.0]) and not camera_sees(sc.camera, [0.0, 0.0, 0.9])
     bx, by, reach = sc.perception_reach()
     assert math.hypot(0.29 - bx, 0.39 - by) > reach
     left = where_left(h.plant, pc, h.bodies, sc, in_bin=[])
@@ -308,9 +308,9 @@ def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
 
-    from mog_drake.systems.pick import BinRetirement, objects_in_bin
+    from mog_drake.station.scoring import BinRetirement, objects_in_bin
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=3, n_objects=3))
+    sc = Scenario(scene=ClutteredScene(seed=3, n_objects=3))
     d, h = MakeStation(sc)
     ctx = d.CreateDefaultContext()
     pc = h.plant.GetMyMutableContextFromRoot(ctx)
@@ -331,14 +331,51 @@ def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
 
 
 def test_committed_scenario_file_matches_the_defaults():
-    from pathlib import Path
+    from mog_drake.scenario import SCENARIO_YAML, scenario_yaml
 
-    from pydrake.common.yaml import yaml_dump_typed
-
-    text = (Path(__file__).parents[1] / "models" / "scenario.yaml").read_text()
+    text = SCENARIO_YAML.read_text()
     body = "\n".join(line for line in text.splitlines() if not line.startswith("#"))
-    assert body.strip() == yaml_dump_typed(Scenario()).strip()
-    assert load_scenario(str(Path(__file__).parents[1] / "models" / "scenario.yaml")) == Scenario()
+    assert body.strip() == scenario_yaml().strip()
+    assert scenario_yaml(load_scenario(str(SCENARIO_YAML))) == scenario_yaml(Scenario())
+
+
+def test_every_setting_is_reachable_from_yaml():
+    """Every field of every nested config, the project's dataclasses and Drake's structs alike,
+    is a key of models/scenario.yaml, so it can be set from a scenario file."""
+    import dataclasses
+
+    import yaml
+
+    from mog_drake.scenario import SCENARIO_YAML
+
+    class Untagged(yaml.SafeLoader):  # a variant's tag (!FovDegrees, !Rpy, ...) names its type only
+        pass
+
+    Untagged.add_multi_constructor("!", lambda loader, tag, node: loader.construct_mapping(node, deep=True))
+    doc = yaml.load(SCENARIO_YAML.read_text(), Loader=Untagged)  # noqa: S506
+
+    def fields(obj):
+        if dataclasses.is_dataclass(obj):
+            return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+        if type(obj).__name__.endswith("Config") and hasattr(type(obj), "__fields__"):  # Drake's
+            return {f.name: getattr(obj, f.name) for f in type(obj).__fields__}
+        return None
+
+    missing = []
+
+    def walk(obj, node, path):
+        for name, value in (fields(obj) or {}).items():
+            if value is None:
+                continue  # an optional Drake field left unset: yaml_dump_typed omits it
+            if not isinstance(node, dict) or name not in node:
+                missing.append(f"{path}{name}")
+            elif fields(value):
+                walk(value, node[name], f"{path}{name}.")
+
+    walk(Scenario(), doc, "")
+    assert not missing
+    for name in ("motion", "controller", "perception", "simulator", "visualization", "camera"):
+        assert name in doc
 
 
 def test_tiny_picking_evaluation(tmp_path):
@@ -404,7 +441,7 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
         4_000_000,
         5,
     )
-    assert (sc.scene.kind, sc.time_limit) == ("cluttered", 60.0)
+    assert (type(sc.scene), sc.time_limit) == (ClutteredScene, 60.0)
     (default_task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0)
     assert (
         "scenario" not in default_task
@@ -447,13 +484,13 @@ def test_what_perception_cannot_recognise_is_outlined_and_grasped(tmp_path):
 
     truth = make_scene([("green_trapezoid", 0.05, -0.04, 0.4), ("blue_pentagon", -0.08, 0.06, 0.0)])
     truth.save(tmp_path / "unknown.yaml")
-    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "unknown.yaml")))
+    sc = Scenario(scene=SceneFile(file=str(tmp_path / "unknown.yaml")))
     d, _ = MakeStation(sc)
     rgb, depth = render_still(sc, d)
     perceiver = Perceiver(
         table=sc.table, ignore=sc.perception_ignore(), config=PerceptionConfig(shapes=("blue_pentagon",))
     )
-    seen = perceiver.perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    seen = perceiver.perceive(rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
     assert [o.shape for o in seen.objects] == ["blue_pentagon"]
     (blob,) = seen.meta["unrecognised"]
     true, got = shapely.Polygon(truth.polygon(0)), shapely.Polygon(blob["vertices"])
@@ -461,7 +498,7 @@ def test_what_perception_cannot_recognise_is_outlined_and_grasped(tmp_path):
     assert abs(blob["top"] - truth.shape(0).height) < 0.003
 
     left = Scene([], seen.library, table=seen.table, meta=seen.meta)  # the pentagon was picked
-    decision = next_pick(left, make_planner(sc), "mog")
+    decision = next_pick(left, make_planner(sc), sc.planner)
     assert decision.status == "grasp" and decision.unrecognised and decision.expected == (0,)
     assert shapely.Polygon(truth.polygon(0)).distance(shapely.Point(decision.grasp[:2])) < 0.005
 
@@ -473,14 +510,15 @@ def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
     from mog_drake.planning.planner import GraspPlanner
     from mog_drake.planning.protocol import GraspResult
     from mog_drake.scenes import Scene, default_library
-    from mog_drake.systems.leaf_systems import Perceived, PlannerSystem
+    from mog_drake.systems.perception import Perceived
+    from mog_drake.systems.planner import PlannerSystem
 
     class LiftsAnything:  # a grasp always exists: only the planner system's count ends it
         def check(self, scene, group, grasp):
             return GraspResult(True, lifted=list(group))
 
     blob = {"vertices": [[0.0, 0.0], [0.02, 0.0], [0.02, 0.035], [0.0, 0.035]], "top": 0.03}
-    p = PlannerSystem(GraspPlanner(LiftsAnything()), "mog")
+    p = PlannerSystem(GraspPlanner(LiftsAnything()))
     ctx = p.CreateDefaultContext()
     sim = Simulator(p, ctx)
     seen = []
@@ -511,11 +549,11 @@ def test_perception_finds_toppled_bars_touching_upright_objects(tmp_path):
         ]
     )
     truth.save(tmp_path / "toppled.yaml")
-    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "toppled.yaml")))
+    sc = Scenario(scene=SceneFile(file=str(tmp_path / "toppled.yaml")))
     d, h = MakeStation(sc)
     rgb, depth = render_still(sc, d)
     seen = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(
-        rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics()
+        rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera)
     )
     errs = pose_errors(seen, truth)
     assert sorted(o.shape for o in seen.objects) == sorted(o.shape for o in truth.objects)
@@ -541,10 +579,10 @@ def test_perception_sees_beside_the_bin_and_leaves_out_what_the_arm_cannot_reach
         table=(-0.3, 0.3, -0.4, 0.4),
     )
     truth.save(tmp_path / "edges.yaml")
-    sc = Scenario(scene=SceneSpec(file=str(tmp_path / "edges.yaml")))
+    sc = Scenario(scene=SceneFile(file=str(tmp_path / "edges.yaml")))
     d, h = MakeStation(sc)
     rgb, depth = render_still(sc, d)
-    args = (rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    args = (rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
     everything = Perceiver(table=sc.table, ignore=sc.perception_ignore()).perceive(*args)
     assert sorted(o.shape for o in everything.objects) == sorted(o.shape for o in truth.objects)
     seen = sc.perceiver().perceive(*args)
@@ -579,14 +617,12 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
 
 
 def test_carrying_is_gentler_than_moving_empty():
-    from mog_drake.station import FLANGE_TO_PALM
     from mog_drake.systems.motion import ArmMotion, MotionConfig
 
     sc = Scenario()
     plans = {
         scale: ArmMotion(
             sc.robot.base,
-            FLANGE_TO_PALM,
             sc.robot.max_joint_speed,
             sc.robot.max_joint_acceleration,
             MotionConfig(carry_scale=scale),
@@ -628,10 +664,10 @@ def test_touching_bars_are_split_right(seed, yaw_deg):
     from mog_drake.scenes import cluttered_scene
 
     scene = cluttered_scene(np.random.default_rng(seed))
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=seed))
+    sc = Scenario(scene=ClutteredScene(seed=seed))
     d, h = MakeStation(sc, scene)
     rgb, depth = render_still(sc, d)
-    seen = sc.perceiver().perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+    seen = sc.perceiver().perceive(rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
     errs = pose_errors(seen, scene)
     assert all(e["position"] is not None for e in errs) and seen.meta["unrecognised_blobs"] == 0
     assert max(e["position"] for e in errs) <= 0.003

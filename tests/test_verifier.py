@@ -8,7 +8,7 @@ from conftest import make_scene
 
 from mog_drake.geometry import evaluate_grasps, objects_in_reach
 from mog_drake.planning.protocol import Verifier
-from mog_drake.sim.models import ContactConfig
+from mog_drake.sim.models import ContactConfig, with_time_step
 from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
 
@@ -78,7 +78,7 @@ def test_identical_inputs_identical_outcomes():
 @pytest.mark.parametrize(
     "config,msg",
     [
-        (VerifierConfig(contact=ContactConfig(time_step=0.1)), "left the table"),  # absurd step
+        (VerifierConfig(contact=with_time_step(ContactConfig(), 0.1)), "left the table"),  # absurd step
         (VerifierConfig(contact=ContactConfig(hydroelastic_modulus=1e3)), "left the table"),
         (VerifierConfig(cpu_budget=1e-4), "CPU budget"),
     ],
@@ -197,7 +197,7 @@ def test_coupled_jaws_stay_mirror_images_under_uneven_commands(coupled):
 
     builder = DiagramBuilder()
     contact = ContactConfig()
-    plant, _ = AddMultibodyPlant(contact.plant_config(), builder)
+    plant, _ = AddMultibodyPlant(contact.plant, builder)
     g = add_gantry_gripper(plant, GripperGeometry(), GripperPhysics(coupled=coupled), contact)
     plant.Finalize()
     desired = np.zeros(12)

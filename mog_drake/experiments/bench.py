@@ -117,12 +117,12 @@ def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.00
     row scenes (classes 2..7), half from those that pass both conditions (the ones a planner
     actually simulates, and the harder calls). Returns the confusion counts and the list of
     disagreements (scene class, seed, grasp) so each can be replayed."""
-    from dataclasses import replace
 
+    from mog_drake.sim.models import with_time_step
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
     base = VerifierConfig()
-    fine_cfg = VerifierConfig(contact=replace(base.contact, time_step=fine_dt))
+    fine_cfg = VerifierConfig(contact=with_time_step(base.contact, fine_dt))
     coarse, fine = DrakeVerifier(base), DrakeVerifier(fine_cfg)
     rng = np.random.default_rng(seed)
     counts = {"both_success": 0, "both_failure": 0, "coarse_only": 0, "fine_only": 0}
@@ -170,7 +170,7 @@ def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.00
     return {
         "candidates": n,
         "fine_dt": fine_dt,
-        "coarse_dt": base.contact.time_step,
+        "coarse_dt": base.contact.plant.time_step,
         **counts,
         "agreement": (counts["both_success"] + counts["both_failure"]) / n,
         "coarse_median_s": float(np.median(coarse_t)),
@@ -186,8 +186,9 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
     the shape's symmetry), and time per image. ``toppled`` bars per table are laid on their
     side before rendering (the pose a knocked-over bar takes)."""
     from mog_drake.perception import pose_errors
+    from mog_drake.scenario import ClutteredScene, Scenario, camera_intrinsics, camera_pose
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
-    from mog_drake.station import MakeStation, Scenario, SceneSpec, render_still
+    from mog_drake.station import MakeStation, render_still
 
     rows = []
     for k in range(seed, seed + tables):
@@ -203,11 +204,11 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
                 laid += 1
             except MogError:
                 pass
-        sc = Scenario(scene=SceneSpec(kind="cluttered", seed=k))
+        sc = Scenario(scene=ClutteredScene(seed=k))
         d, h = MakeStation(sc, scene)
         rgb, depth = render_still(sc, d)
         t = time.perf_counter()
-        seen = sc.perceiver().perceive(rgb, depth, sc.camera.X_WC().GetAsMatrix4(), sc.camera.intrinsics())
+        seen = sc.perceiver().perceive(rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
         dt = time.perf_counter() - t
         errs = pose_errors(seen, h.scene)
         found = [e for e in errs if e["object"] is not None and e["position"] is not None]
@@ -240,10 +241,11 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     from pydrake.multibody.math import SpatialVelocity
     from pydrake.systems.analysis import Simulator
 
-    from mog_drake.station import MakeStation, Scenario, SceneSpec, hold_still
-    from mog_drake.systems.pick import BinRetirement
+    from mog_drake.scenario import ClutteredScene, Scenario
+    from mog_drake.station import MakeStation, hold_still
+    from mog_drake.station.scoring import BinRetirement
 
-    sc = Scenario(scene=SceneSpec(kind="cluttered", seed=seed))
+    sc = Scenario(scene=ClutteredScene(seed=seed))
     d, h = MakeStation(sc)
     sim = Simulator(d)
     ctx = sim.get_mutable_context()
@@ -289,9 +291,10 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict
     from dataclasses import replace
 
     from mog_drake.planning.picking import next_pick
+    from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.scenes import Scene
     from mog_drake.sim.verifier import DrakeVerifier
-    from mog_drake.station import Scenario, SceneSpec, scene_from_spec
+    from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
 
     rows, done = [], 0
@@ -301,11 +304,11 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict
             planner = make_planner(Scenario())
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
-            scene = scene_from_spec(SceneSpec(kind="cluttered", seed=table_seed))
+            scene = scene_from_spec(ClutteredScene(seed=table_seed))
             rng, failures = np.random.default_rng(table_seed), () if setting == "after" else None
             n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
             while len(scene) and decisions < 3 * n0:
-                d = next_pick(scene, planner, "mog", rng, failures=failures)
+                d = next_pick(scene, planner, rng=rng, failures=failures)
                 failures = d.failures if failures is not None else None
                 decisions += 1
                 checks += d.physics_checks
@@ -341,8 +344,8 @@ def hold_verifiers(window: float):
     once settled for ``window`` seconds."""
     from dataclasses import replace
 
+    from mog_drake.scenario import Scenario
     from mog_drake.sim.verifier import DrakeVerifier
-    from mog_drake.station import Scenario
     from mog_drake.systems.pick import make_planner
 
     if window <= 0:

@@ -36,12 +36,12 @@ def task_scenario(task: dict):
     ``task["scenario"]``) with the seeded table, the time limit, the mode and the seed set."""
     from dataclasses import replace
 
-    from mog_drake.station import Scenario, SceneSpec, scenario_from_text
+    from mog_drake.scenario import ClutteredScene, Scenario, scenario_from_text
 
     base = scenario_from_text(task["scenario"]) if task.get("scenario") else Scenario()
     return replace(
         base,
-        scene=SceneSpec(kind="cluttered", seed=task["scene_seed"], n_objects=task["objects"]),
+        scene=ClutteredScene(seed=task["scene_seed"], n_objects=task["objects"]),
         time_limit=task["time_limit"],
         planner=replace(base.planner, mode=task["mode"], seed=task["scene_seed"]),
     )

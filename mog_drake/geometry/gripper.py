@@ -77,3 +77,8 @@ def to_grasp_frame(points: np.ndarray, grasps: np.ndarray) -> np.ndarray:
     dx = points[..., 0] - g[..., 0][..., None]
     dy = points[..., 1] - g[..., 1][..., None]
     return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+#: The inner opening of the open jaws (m): w_g of the default gripper, 75 mm. The controller
+#: opens to it and the stations start at it.
+OPEN_WIDTH = round(GripperGeometry().w_g, 9)

@@ -17,7 +17,6 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -29,7 +28,8 @@ from pydrake.systems.framework import EventStatus, LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
-from mog_drake.sim.ur5 import DH_A, DH_ALPHA, DH_D, JOINT_LIMIT, dh_transform
+from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.sim.ur5 import DH_A, DH_ALPHA, DH_D, JOINT_LIMIT, base_transform, dh_transform, palm_in_flange
 
 #: The UR5's DH frames 1..6, by the joint they carry.
 LINK_FRAMES = ("shoulder", "elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
@@ -108,15 +108,12 @@ class SafetyMonitor:
         self,
         limits: SafetyLimits,
         base_xyyaw,
-        flange_to_palm: float,
         finger_depth: float = 0.040,
         finger_span: float = 0.085,
     ):
         self.limits = limits
-        bx, by, byaw = base_xyyaw
-        c, s = math.cos(byaw), math.sin(byaw)
-        self._base = np.array([[c, -s, 0, bx], [s, c, 0, by], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-        self._palm = np.array([[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, flange_to_palm], [0, 0, 0, 1.0]])
+        self._base = base_transform(base_xyyaw).GetAsMatrix4()
+        self._palm = palm_in_flange().GetAsMatrix4()
         # Fingertips in the palm frame: the plates' centres at the open span, below the palm.
         h = finger_span / 2
         self._tips = np.array([[-h, 0.0, -finger_depth, 1.0], [h, 0.0, -finger_depth, 1.0]]).T
@@ -403,7 +400,7 @@ class RobotiqDriver(LeafSystem):
         period: float = 0.05,
         dry_run: bool = False,
         log: CommandLog | None = None,
-        initial_width: float = 0.075,
+        initial_width: float = OPEN_WIDTH,
         move_timeout: float = 5.0,
         clock=time.monotonic,
     ):

@@ -20,12 +20,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import DEFAULT_GROUP_RADIUS, GROUPINGS, objects_in_reach, ranked_groups
+from mog_drake.geometry import objects_in_reach, ranked_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
+from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.scenes import Scene, SceneObject, make_shape
-
-MODES = ("mog", "sog")
 
 # A remembered failure applies while every object within reach of its group is where it was
 # (each vertex within this distance: perception's error on a resting object is about 1 mm).
@@ -133,17 +132,15 @@ class PickDecision:
 def next_pick(
     scene,
     planner: GraspPlanner,
-    mode: str = "mog",
+    spec: PlannerSpec | None = None,
     rng: np.random.Generator | None = None,
-    group_radius: float = DEFAULT_GROUP_RADIUS,
-    partial_lifts: bool = True,
     avoid=(),
     failures: tuple[FailedGroup, ...] | None = None,
     grasp_unrecognised: bool = True,
-    last_resort: bool = True,
-    grouping: str = "radius",
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
+
+    ``spec`` (`PlannerSpec`, its defaults when None) says how; the grasp planner is given.
 
     mode "mog": Alg. 1, the largest groups first. ``grouping`` "radius" forms the groups as the
     paper does (`create_obj_groups` with ``group_radius``); "conditions" (an extension) forms
@@ -174,10 +171,9 @@ def next_pick(
     could not recognise (a prism knocked onto its side) are planned as prisms of their outline
     and top height (``unrecognised_scene``); without a grasp for them the status is
     "unrecognised"."""
-    if mode not in MODES:
-        raise MogError(f"picking mode must be one of {MODES}, got {mode!r}")
-    if grouping not in GROUPINGS:
-        raise MogError(f"grouping must be one of {GROUPINGS}, got {grouping!r}")
+    spec = spec or PlannerSpec()
+    spec.check()
+    mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
     if len(scene) == 0:
         # Something the perception could not recognise is not a clear table.
@@ -185,30 +181,19 @@ def next_pick(
         if not blobs:
             status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
             return PickDecision(status, planning_time=time.perf_counter() - t0)
-        d = next_pick(
-            blobs,
-            planner,
-            mode,
-            rng,
-            group_radius,
-            partial_lifts,
-            avoid,
-            failures,
-            last_resort=last_resort,
-            grouping=grouping,
-        )
+        d = next_pick(blobs, planner, spec, rng, avoid, failures)
         d.unrecognised = True
         if d.status != "grasp":
             d.status = "unrecognised"
         return d
     polys = scene.polygons()
     if mode == "mog":
-        groups = ranked_groups(polys, planner.gripper, grouping, group_radius)
+        groups = ranked_groups(polys, planner.gripper, grouping, spec.group_radius)
     else:
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
         groups = [(int(i),) for i in rng.permutation(len(scene))]
-    partial_lifts = partial_lifts and mode == "mog"
+    partial_lifts = spec.partial_lifts and mode == "mog"
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     pending = list(failures or ())  # remembered failures not yet met in this scene

@@ -4,8 +4,9 @@ Everything is built in code from the object library and `GripperGeometry` (the o
 truth for the gripper's sizes), so nothing needs `package://` resolution or a network.
 """
 
+import copy
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.geometry import (
@@ -60,22 +61,20 @@ class ContactConfig:
     finger-object 0.5 (a rubber-padded Robotiq jaw), object-object 0.5 (wood / plastic).
     """
 
-    time_step: float = 0.002
-    discrete_contact_approximation: str = "lagged"
-    contact_model: str = "hydroelastic_with_fallback"
+    # Drake's own: time step, contact model and discrete approximation.
+    plant: MultibodyPlantConfig = field(
+        default_factory=lambda: MultibodyPlantConfig(
+            time_step=0.002,
+            discrete_contact_approximation="lagged",
+            contact_model="hydroelastic_with_fallback",
+        )
+    )
     hydroelastic_modulus: float = 5e6  # Pa, compliant prisms
     hunt_crossley_dissipation: float = 5.0  # s/m
     resolution_hint: float = 0.01  # m
     mu_object: float = 0.5
     mu_finger: float = 0.5
     mu_table: float = 0.005
-
-    def plant_config(self) -> MultibodyPlantConfig:
-        return MultibodyPlantConfig(
-            time_step=self.time_step,
-            discrete_contact_approximation=self.discrete_contact_approximation,
-            contact_model=self.contact_model,
-        )
 
 
 @dataclass
@@ -287,3 +286,10 @@ def filter_gripper_self_collisions(plant: MultibodyPlant, scene_graph, bodies) -
 
 def pose_to_transform(x: float, y: float, theta: float, z: float = 0.0) -> RigidTransform:
     return RigidTransform(RotationMatrix.MakeZRotation(theta), [x, y, z])
+
+
+def with_time_step(contact: ContactConfig, dt: float) -> ContactConfig:
+    """A copy of ``contact`` with the plant's time step set to ``dt`` (s)."""
+    plant = copy.copy(contact.plant)
+    plant.time_step = dt
+    return replace(contact, plant=plant)

@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
 
 # UR5 DH parameters (m, rad).
 DH_D = (0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823)
@@ -23,11 +24,27 @@ BASE_MASS = 4.0
 JOINT_NAMES = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
 JOINT_LIMIT = 2 * math.pi  # rad
 VELOCITY_LIMIT = math.pi  # rad/s (180 deg/s)
-ACCELERATION_LIMIT = math.pi  # rad/s^2, a conservative application limit
 EFFORT_LIMITS = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)  # N m
 CAPSULE_RADII = (0.06, 0.054, 0.045, 0.04, 0.04, 0.035)
 
 URDF_PATH = Path(__file__).resolve().parents[2] / "models" / "ur5.urdf"
+
+# --- The robot's frames, the one place they are written ------------------------------------
+#: The gripper's palm frame lies this far beyond the flange (tool0) along the tool axis (m): a
+#: 2F-85 on its coupling. The palm's z points up, away from the fingers (the tool axis flipped),
+#: its x along the closing axis; the fingertips are `finger_height` below it.
+FLANGE_TO_PALM = 0.110
+
+
+def base_transform(base_xyyaw) -> RigidTransform:
+    """X_WB: the arm's base in the table (world) frame, from (x, y, yaw), on the table top."""
+    bx, by, byaw = base_xyyaw
+    return RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0])
+
+
+def palm_in_flange() -> RigidTransform:
+    """X_FP: the palm frame in the flange frame (tool0)."""
+    return RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, FLANGE_TO_PALM])
 
 
 def dh_transform(q: float, d: float, a: float, alpha: float) -> np.ndarray:

@@ -137,7 +137,7 @@ class _GroupSim:
     def __init__(self, scene, ids: list[int], gripper: GripperGeometry, config: VerifierConfig, meshcat=None):
         t0 = time.perf_counter()
         builder = DiagramBuilder()
-        plant, scene_graph = AddMultibodyPlant(config.contact.plant_config(), builder)
+        plant, scene_graph = AddMultibodyPlant(config.contact.plant, builder)
         x0, x1, y0, y1 = scene.table
         add_table(plant, config.contact, size=(x1 - x0 + 0.4, y1 - y0 + 0.4))
         self.bodies = {}

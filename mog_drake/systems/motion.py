@@ -6,8 +6,6 @@ The gripper pose is its palm frame: z up, x along the closing axis, fingertips
 joined by a cubic through them), so the open jaws come down beside the objects, never across.
 """
 
-from __future__ import annotations
-
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +19,7 @@ from pydrake.solvers import Solve
 from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial
 
 from mog_drake.errors import MogError
-from mog_drake.sim.ur5 import URDF_PATH
+from mog_drake.sim.ur5 import URDF_PATH, base_transform, palm_in_flange
 
 
 @dataclass
@@ -29,8 +27,6 @@ class MotionConfig:
     hover: float = 0.12  # m, palm height above the grasp height before descending
     lift: float = 0.15  # m
     bin_clearance: float = 0.12  # m, fingertips above the bin rim
-    finger_height: float = 0.040
-    finger_clearance: float = 0.002  # fingertips above the table at the grasp
     levels: int = 5  # IK points on a vertical line
     # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
     # joint speed and acceleration limits: objects carried by friction stay put.
@@ -43,25 +39,24 @@ class ArmMotion:
     def __init__(
         self,
         base_xyyaw,
-        flange_to_palm: float,
         max_speed: float,
         max_accel: float,
         config: MotionConfig | None = None,
+        finger_height: float = 0.040,
+        finger_clearance: float = 0.002,
     ):
+        """``finger_height``: the fingertips below the palm (m); ``finger_clearance``: the
+        fingertips above the table at the grasp (m), both the gripper's (GripperPhysics)."""
         self.config = config or MotionConfig()
+        self.finger_height, self.finger_clearance = finger_height, finger_clearance
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(URDF_PATH))
-        bx, by, byaw = base_xyyaw
-        plant.WeldFrames(
-            plant.world_frame(),
-            plant.GetFrameByName("base_link"),
-            RigidTransform(RotationMatrix.MakeZRotation(byaw), [bx, by, 0.0]),
-        )
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"), base_transform(base_xyyaw))
         self.palm = plant.AddFrame(
             FixedOffsetFrame(
                 "palm",
                 plant.GetFrameByName("tool0"),
-                RigidTransform(RotationMatrix.MakeXRotation(np.pi), [0.0, 0.0, flange_to_palm]),
+                palm_in_flange(),
             )
         )
         plant.Finalize()
@@ -158,7 +153,7 @@ class ArmMotion:
         -> above the bin -> (open) -> start. The grasp yaw is taken modulo pi, whichever turns
         the wrist less. Raises MogError for a pose the arm cannot reach."""
         cfg = self.config
-        z_grasp = cfg.finger_height + cfg.finger_clearance
+        z_grasp = self.finger_height + self.finger_clearance
         z_above = z_grasp + cfg.hover
         q_start = np.asarray(q_start, float)
         best = None
@@ -176,7 +171,7 @@ class ArmMotion:
         yaw, q_above = best
         down = self.vertical(grasp[:2], z_above, z_grasp, yaw, q_above)
         up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])
-        z_bin = bin_height + cfg.bin_clearance + cfg.finger_height
+        z_bin = bin_height + cfg.bin_clearance + self.finger_height
         q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, (up[-1], q_start))
         return {
             "approach": self.timed([q_start, q_above, *down[1:]]),

@@ -2,22 +2,22 @@
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-from pydrake.math import RigidTransform
-from pydrake.multibody.math import SpatialVelocity
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.errors import HardwareFault
-from mog_drake.perception import within_reach
-from mog_drake.planning.planner import GraspPlanner, PlannerConfig
-from mog_drake.station import FLANGE_TO_PALM, MakeStation, Scenario, check_planner_spec
-from mog_drake.systems.leaf_systems import ControllerSystem, PerceptionSystem, PlannerSystem
-from mog_drake.systems.motion import ArmMotion, MotionConfig
+from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.planning.planner import GraspPlanner
+from mog_drake.scenario import Scenario, camera_intrinsics, camera_pose, check_scenario
+from mog_drake.station import MakeStation
+from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
+from mog_drake.systems.controller import ControllerSystem
+from mog_drake.systems.motion import ArmMotion
+from mog_drake.systems.perception import PerceptionSystem
+from mog_drake.systems.planner import PlannerSystem
 
 
 def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
@@ -26,73 +26,55 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     from mog_drake.geometry import GripperGeometry
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
+    spec = scenario.planner
     # With partial lifts, a check that holds two or more of the group runs to the end to say
     # so; one lifted object is not worth the hold (a lone object's own check is as cheap).
     vcfg = VerifierConfig(
         contact=scenario.planner_contact,
         physics=scenario.gripper,
-        report_partial_lifts=2 if scenario.planner.partial_lifts else 0,
-        hold_time=scenario.planner.hold_s,
-        settle_window=scenario.planner.settle_window_s,
+        report_partial_lifts=2 if spec.partial_lifts else 0,
+        hold_time=spec.hold_s,
+        settle_window=spec.settle_window_s,
     )
     # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
     default, jaws = VerifierConfig(), GripperGeometry()
     vcfg.cpu_budget = default.cpu_budget * max(
         1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
     )
-    return GraspPlanner(
-        verifier or DrakeVerifier(vcfg),
-        PlannerConfig(
-            method=scenario.planner.method,
-            n_positions=scenario.planner.n_positions,
-            n_orientations=scenario.planner.n_orientations,
-            max_physics=scenario.planner.max_physics_per_group or None,
-            edge_orientations=scenario.planner.edge_orientations,
-            min_squeeze_margin=math.radians(scenario.planner.min_squeeze_margin_deg),
-            vary_axis=scenario.planner.vary_axis,
-            lone_widest_basin=scenario.planner.lone_widest_basin,
-        ),
-    )
+    return GraspPlanner(verifier or DrakeVerifier(vcfg), spec.grasp_planner())
 
 
 def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
-    check_planner_spec(scenario.planner)
+    check_scenario(scenario)
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
     from mog_drake.scenes import default_library
 
     library = handles.scene.library if handles.scene is not None else default_library()
+    period = scenario.controller.period
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     perception = builder.AddNamedSystem(
         "perception",
-        PerceptionSystem(scenario.camera, scenario.perceiver(library)),
-    )
-    planner = make_planner(scenario, verifier)
-    planner_sys = builder.AddNamedSystem(
-        "planner",
-        PlannerSystem(
-            planner,
-            scenario.planner.mode,
-            scenario.planner.seed,
-            partial_lifts=scenario.planner.partial_lifts,
-            remember_failures=scenario.planner.remember_failures,
-            group_radius=scenario.planner.group_radius,
-            grouping=scenario.planner.grouping,
-            last_resort=scenario.planner.last_resort,
+        PerceptionSystem(
+            camera_pose(scenario.camera),
+            camera_intrinsics(scenario.camera),
+            scenario.perceiver(library),
+            period,
         ),
     )
+    planner_sys = builder.AddNamedSystem(
+        "planner", PlannerSystem(make_planner(scenario, verifier), scenario.planner, period)
+    )
+    g = scenario.gripper
     motion = ArmMotion(
         scenario.robot.base,
-        FLANGE_TO_PALM,
         scenario.robot.max_joint_speed,
         scenario.robot.max_joint_acceleration,
-        MotionConfig(
-            finger_height=scenario.gripper.finger_height, finger_clearance=scenario.gripper.finger_clearance
-        ),
+        scenario.motion,
+        finger_height=g.finger_height,
+        finger_clearance=g.finger_clearance,
     )
-    open_width = 0.075
-    close_time = open_width / 2 / scenario.gripper.close_speed + 0.2
     controller = builder.AddNamedSystem(
         "controller",
         ControllerSystem(
@@ -100,9 +82,10 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             scenario.robot.home,
             scenario.bin.center,
             scenario.bin.depth,
-            open_width=open_width,
-            close_time=close_time,
+            open_width=OPEN_WIDTH,
+            close_time=OPEN_WIDTH / 2 / g.close_speed + scenario.controller.close_margin,
             time_limit=scenario.time_limit,
+            config=scenario.controller,
         ),
     )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
@@ -169,79 +152,6 @@ class PickRun:
             "left_out_of_view": sum(w == "out of view" for w, _ in self.left.values()),
             "left_off_table": sum(w == "off the table" for w, _ in self.left.values()),
         }
-
-
-def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
-    """Scoring only (ground truth): objects whose centre lies inside the bin's walls, plus
-    those already retired from it (see `BinRetirement`)."""
-    cx, cy = scenario.bin.center
-    hx, hy = scenario.bin.inner[0] / 2, scenario.bin.inner[1] / 2
-    out = []
-    for i, b in bodies.items():
-        if i in retired:
-            out.append(i)
-            continue
-        p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
-        if abs(p[0] - cx) <= hx and abs(p[1] - cy) <= hy and p[2] < scenario.bin.depth + 0.05:
-            out.append(i)
-    return out
-
-
-class BinRetirement:
-    """Simulation speed, not physics: an object at rest in the bin is taken out of the scene.
-
-    A pile in the bin is the costliest contact in the station (`mog-drake bench station`: 33
-    prisms piled in the bin cost over 4x the same 33 on the table, and close to 20x the
-    station once the pile is retired), and
-    nothing the robot does depends on it: the bin is outside the camera's view and the robot
-    only drops objects into it. Retired objects are parked far above the station, each in its
-    own spot, put back there with zero velocity at every check (they fall freely in between),
-    and counted in the bin for good. The pile is gone, so a later drop lands on the bin floor;
-    a Meshcat replay shows retired objects leave the bin."""
-
-    PARK = np.array([20.0, 20.0, 50.0])  # m, far from everything, above the table's half-space
-
-    def __init__(self, plant, bodies, scenario: Scenario, rest_speed: float = 0.02):
-        self.plant, self.bodies, self.scenario = plant, bodies, scenario
-        self.rest_speed = rest_speed
-        self.retired: list[int] = []
-
-    def update(self, plant_context) -> None:
-        plant = self.plant
-        for i in objects_in_bin(plant, plant_context, self.bodies, self.scenario, self.retired):
-            if i in self.retired:
-                continue
-            v = plant.EvalBodySpatialVelocityInWorld(plant_context, self.bodies[i])
-            if np.linalg.norm(v.translational()) < self.rest_speed:
-                self.retired.append(i)
-        for k, i in enumerate(self.retired):
-            X = RigidTransform(self.PARK + [0.3 * k, 0.0, 0.0])
-            plant.SetFreeBodyPose(plant_context, self.bodies[i], X)
-            plant.SetFreeBodySpatialVelocity(plant_context, self.bodies[i], SpatialVelocity.Zero())
-
-
-def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:
-    """Scoring only (ground truth): where each object outside the bin is."""
-    x0, x1, y0, y1 = scenario.table
-    reach = scenario.perception_reach()
-    out = {}
-    for i, b in bodies.items():
-        if i in in_bin:
-            continue
-        p = plant.EvalBodyPoseInWorld(plant_context, b).translation()
-        if p[2] < -0.02:
-            where = "off the table"
-        elif (
-            x0 <= p[0] <= x1
-            and y0 <= p[1] <= y1
-            and scenario.camera.sees(p)
-            and within_reach(p[0], p[1], reach)
-        ):
-            where = "in view"
-        else:
-            where = "out of view"
-        out[int(i)] = (where, [round(float(v), 3) for v in p])
-    return out
 
 
 class WallClockPacer:
@@ -316,7 +226,11 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     handles = parts["handles"]
     controller = parts["controller"]
     sim = Simulator(diagram)
-    pacer = WallClockPacer(sim, step=scenario.hardware.servo_period) if realtime else None
+    ApplySimulatorConfig(scenario.simulator, sim)
+    pacer = None
+    if realtime:  # paced here, never by the Simulator's own catch-up
+        sim.set_target_realtime_rate(0.0)
+        pacer = WallClockPacer(sim, step=scenario.hardware.servo_period)
     ctx = sim.get_mutable_context()
     ctrl_ctx = controller.GetMyContextFromRoot(ctx)
     scored = handles.plant is not None

@@ -1,5 +1,5 @@
 """The hardware station: a real UR5 (ur_rtde) and Robotiq 2F-85, and an RGB-D camera source,
-exporting the simulated station's port names (see mog_drake.station)."""
+exporting the simulated station's port contract (`mog_drake.station`)."""
 
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ from mog_drake.hardware.drivers import (
     UR5Driver,
     robot_health,
 )
+from mog_drake.scenario import ReplaySource
 
 
 class HardwareHandles:
@@ -70,8 +71,6 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
     ``scenario.hardware.robot_ip`` (ur_rtde, the Robotiq URCap socket). A dry run connects to
     nothing and logs every command instead. A robot that is not connected, running and in a
     normal safety mode, or a gripper that does not activate, refuses to start with one line."""
-    from mog_drake.station import FLANGE_TO_PALM
-
     hw = scenario.hardware
     if not hw.robot_ip:
         raise MogError(
@@ -104,7 +103,6 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
             burst_window=hw.burst_window,
         ),
         scenario.robot.base,
-        FLANGE_TO_PALM,
         finger_depth=scenario.gripper.finger_height,
     )
     # The handles hold the list itself, so connections opened below are closed too.
@@ -158,14 +156,12 @@ def _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_i
             move_timeout=hw.gripper_move_timeout,
         ),
     )
-    if hw.camera == "replay":
-        camera = builder.AddNamedSystem("camera", ReplayCamera(hw.replay_dir, hw.replay_frame_period))
-    elif hw.camera == "realsense":
-        camera = builder.AddNamedSystem(
-            "camera", RealSenseCamera(scenario.camera.width, scenario.camera.height)
-        )
+    if isinstance(hw.camera, ReplaySource):
+        camera = builder.AddNamedSystem("camera", ReplayCamera(hw.camera.dir, hw.camera.frame_period))
     else:
-        raise MogError(f"hardware.camera must be 'realsense' or 'replay', got {hw.camera!r}")
+        camera = builder.AddNamedSystem(
+            "camera", RealSenseCamera(scenario.camera.width, scenario.camera.height, hw.camera.fps)
+        )
     builder.ExportInput(ur5.GetInputPort("ur5.position"), "ur5.position")
     builder.ExportInput(grip.GetInputPort("gripper.position"), "gripper.position")
     builder.ExportOutput(ur5.GetOutputPort("ur5.position_measured"), "ur5.position_measured")

@@ -1,0 +1,305 @@
+"""Configuration as data: everything a pick-and-place run depends on, one dataclass per concern.
+
+Each part's own config is nested as it is and passed straight to its builder: Drake's
+`MultibodyPlantConfig` (inside `ContactConfig`), `SimulatorConfig`, `CameraConfig` and
+`VisualizationConfig`, and the project's `PlannerSpec`, `PerceptionConfig`, `MotionConfig`,
+`ControllerConfig`, `GripperPhysics`. Variants are chosen by YAML tags, as in Drake's
+hardware_sim: ``scene: !RowScene {row_class: 3}``, ``hardware: {camera: !ReplaySource {dir:
+frames}}``. `load_scenario` reads a YAML file over the defaults with `yaml_load_typed`;
+`models/scenario.yaml` is generated from the defaults (``python -m mog_drake.scenario``) and
+lists every setting.
+
+World frame = table frame: origin at the centre of the table top, z up.
+"""
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+from pydrake.common.schema import Rotation, Transform
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.math import RollPitchYaw
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+from mog_drake.errors import MogError
+from mog_drake.perception import PerceptionConfig
+from mog_drake.planning.config import PlannerSpec
+from mog_drake.sim.models import ContactConfig, GripperPhysics
+from mog_drake.systems.controller import ControllerConfig
+from mog_drake.systems.motion import MotionConfig
+
+SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
+
+
+# --- the objects on the table: one of three sources, chosen by tag -------------------------
+@dataclass
+class ClutteredScene:
+    """A seeded cluttered table drawn from an inventory (`scenes.cluttered_scene`)."""
+
+    seed: int = 0
+    inventory: str = "isrr33"
+    n_objects: int = 0  # 0: the whole inventory
+
+
+@dataclass
+class RowScene:
+    """One of the paper's row classes (`scenes.row_scene`), seeded."""
+
+    seed: int = 0
+    row_class: int = 3
+
+
+@dataclass
+class SceneFile:
+    """A scene YAML file (`mog-drake scene generate` writes them)."""
+
+    file: str = ""
+
+
+SceneSource = Union[ClutteredScene, RowScene, SceneFile]  # noqa: UP007
+# (No "from __future__ import annotations" here: yaml_dump_typed reads the field types.)
+
+
+@dataclass
+class RobotSpec:
+    # x, y, yaw of the UR5 base; yaw pi turns the DH zero pose (arm along -x) towards the table.
+    base: list[float] = field(default_factory=lambda: [-0.50, 0.0, 3.14159265])
+    # Observe pose (rad): the palm at (-0.33, 0, 0.35) m, outside the camera's view.
+    home: list[float] = field(default_factory=lambda: [-0.692, -2.413, 1.965, -1.122, -1.573, -2.262])
+    max_joint_speed: float = 3.14  # rad/s (the UR5 does 180 deg/s)
+    max_joint_acceleration: float = 3.14  # rad/s^2
+    # Horizontal distance from the base's axis within which the arm reaches a top-down grasp at
+    # the table (m). IK reaches 0.86 m in every direction over the table; 2 cm are kept for a
+    # grasp centred off its object. Perception reports no object whose centre lies beyond it.
+    reach: float = 0.84
+    kp: float = 4000.0
+    kd: float = 400.0
+
+
+@dataclass
+class BinSpec:
+    center: list[float] = field(default_factory=lambda: [-0.25, 0.38])
+    inner: list[float] = field(default_factory=lambda: [0.24, 0.18])
+    depth: float = 0.10
+    wall: float = 0.01
+
+    def footprint(self, margin: float = 0.0) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the bin's outside walls, grown by ``margin``."""
+        hx, hy = self.inner[0] / 2 + self.wall + margin, self.inner[1] / 2 + self.wall + margin
+        cx, cy = self.center
+        return (cx - hx, cx + hx, cy - hy, cy + hy)
+
+
+def default_camera() -> CameraConfig:
+    """The overhead RGB-D camera, looking straight down at the table from 0.8 m.
+
+    Turned 90 deg about the vertical, the image's long side (640 columns) runs along the
+    table's y: objects dropped or pushed beside the bin (y ~ 0.35 m) stay in view. A 42 deg
+    vertical field of view covers 0.61 m over 480 rows and 0.82 m over 640 columns (1.3 mm per
+    pixel): the whole perceived table, so that an object pushed to its edge is still seen."""
+    return CameraConfig(
+        name="overhead",
+        width=640,
+        height=480,
+        focal=CameraConfig.FovDegrees(y=42.0),
+        clipping_near=0.05,
+        clipping_far=5.0,
+        z_near=0.1,
+        z_far=2.0,
+        X_PB=Transform(translation=[0.0, 0.0, 0.80], rotation=Rotation(RollPitchYaw(np.pi, 0.0, np.pi / 2))),
+        renderer_name="vtk",
+    )
+
+
+# --- the real robot --------------------------------------------------------------------------
+@dataclass
+class RealSenseSource:
+    """An Intel RealSense (pyrealsense2), colour and depth aligned to colour."""
+
+    fps: int = 30
+
+
+@dataclass
+class ReplaySource:
+    """Recorded RGB-D frames (frame_*.npz) from ``dir``, one per ``frame_period`` s (the last
+    one held; default: the first one held)."""
+
+    dir: str = ""
+    frame_period: float = 1e9
+
+
+@dataclass
+class HardwareSpec:
+    """The real robot (see docs/hardware.md). ``enabled`` selects it."""
+
+    enabled: bool = False
+    robot_ip: str = ""  # required: the station refuses to start without it
+    gripper_port: int = 63352
+    camera: Union[RealSenseSource, ReplaySource] = field(default_factory=RealSenseSource)  # noqa: UP007
+    dry_run: bool = False  # log every command instead of sending it
+    command_log: str = ""  # dry run: JSON-lines file (default: stderr)
+    # Palm box (xmin, xmax, ymin, ymax, zmin, zmax; m, table frame); the fingertips stay inside
+    # it in x and y, and above the table top.
+    workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
+    max_joint_speed: float = 1.5  # rad/s in wall-clock time: a target implying more is refused
+    # s of motion at max_joint_speed the stream may run ahead of the wall clock (PC jitter).
+    burst_window: float = 0.03
+    # m: every link frame (shoulder, elbow, wrists, flange) at least this far above the table top
+    # (about a link's radius; the pick's motions keep 0.15 m or more).
+    link_clearance: float = 0.05
+    link_box: list[float] = field(default_factory=list)  # optional box for every link frame
+    servo_period: float = 0.01  # s, servoJ streaming period (the controller's period)
+    stale_after: float = 0.1  # s without a new RTDE timestamp before the robot state is stale
+    gripper_timeout: float = 1.0  # s, hard deadline of one gripper request
+    gripper_activation_timeout: float = 5.0  # s for the gripper's activation (STA 3)
+    gripper_move_timeout: float = 5.0  # s for a gripper move to end (OBJ non-zero)
+
+
+def _contact(mu_table: float) -> ContactConfig:
+    return ContactConfig(mu_table=mu_table)
+
+
+@dataclass
+class Scenario:
+    """Everything a pick-and-place run depends on. Defaults run with no file at all."""
+
+    scene: SceneSource = field(default_factory=ClutteredScene)
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    bin: BinSpec = field(default_factory=BinSpec)
+    camera: CameraConfig = field(default_factory=default_camera)
+    # The world's contact: a real table has friction (0.3 here: laminate under wood or plastic).
+    # On the paper's near-frictionless table, objects squeezed out of a grasp slide off the
+    # table for good.
+    contact: ContactConfig = field(default_factory=lambda: _contact(0.3))
+    # The grasp verifier's model. By default the world's own: table friction changes how
+    # pushed objects turn and slide, and with the paper's near-frictionless table (mu_table
+    # 0.005, the row experiments' model) the verifier promised groups the world did not lift.
+    planner_contact: ContactConfig = field(default_factory=lambda: _contact(0.3))
+    # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
+    # planner's physics check alike.
+    gripper: GripperPhysics = field(default_factory=lambda: GripperPhysics(coupled=True))
+    planner: PlannerSpec = field(default_factory=PlannerSpec)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    # The simulated station's Simulator. Its target_realtime_rate stays 0: a real-time run is
+    # paced by the wall clock without catch-up (systems.pick.WallClockPacer).
+    simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
+    # Meshcat (--meshcat, --record): the illustration geometry only.
+    visualization: VisualizationConfig = field(
+        default_factory=lambda: VisualizationConfig(
+            publish_proximity=False, publish_contacts=False, enable_alpha_sliders=False
+        )
+    )
+    # The perceived table (xmin, xmax, ymin, ymax): where perception looks for objects (within
+    # the arm's reach, robot.reach). The camera sees all of it; the table under it is larger.
+    table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.40, 0.40])
+    time_limit: float = 600.0  # s of simulated robot time
+    hardware: HardwareSpec = field(default_factory=HardwareSpec)
+
+    def perception_ignore(self) -> list[tuple[float, float, float, float]]:
+        """Regions where perception looks for no object: the bin and 5 mm around it (the
+        camera sees the outside of its walls)."""
+        return [self.bin.footprint(0.005)]
+
+    def perception_reach(self) -> tuple[float, float, float]:
+        """(x, y, radius): the disc about the robot's base within which the arm reaches."""
+        bx, by, _ = self.robot.base
+        return (float(bx), float(by), float(self.robot.reach))
+
+    def perceiver(self, library=None):
+        """A Perceiver of this scenario's perceived table: its ignored regions and the arm's
+        reach (what the Perception system uses)."""
+        from mog_drake.perception import Perceiver
+
+        return Perceiver(
+            library,
+            config=self.perception,
+            table=self.table,
+            ignore=self.perception_ignore(),
+            reach=self.perception_reach(),
+        )
+
+
+# --- the camera's geometry, from its config ---------------------------------------------------
+def camera_pose(camera: CameraConfig) -> np.ndarray:
+    """X_WC (4x4): the camera's pose in the table frame (its parent frame is the world)."""
+    return camera.X_PB.GetDeterministicValue().GetAsMatrix4()
+
+
+def camera_intrinsics(camera: CameraConfig) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy) in pixels."""
+    color, _ = camera.MakeCameras()
+    k = color.core().intrinsics()
+    return (k.focal_x(), k.focal_y(), k.center_x(), k.center_y())
+
+
+def camera_sees(camera: CameraConfig, p_W) -> bool:
+    """Whether the world point projects inside the image (in front of the camera)."""
+    X = camera_pose(camera)
+    p_C = X[:3, :3].T @ (np.asarray(p_W, dtype=float) - X[:3, 3])
+    if p_C[2] <= camera.z_near:
+        return False
+    fx, fy, cx, cy = camera_intrinsics(camera)
+    u = fx * p_C[0] / p_C[2] + cx
+    v = fy * p_C[1] / p_C[2] + cy
+    return bool(0 <= u < camera.width and 0 <= v < camera.height)
+
+
+# --- loading ----------------------------------------------------------------------------------
+def load_scenario(path: str | None = None) -> Scenario:
+    """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""
+    if not path:
+        return Scenario()
+    return _checked(
+        str(path), lambda: yaml_load_typed(schema=Scenario, filename=str(path), defaults=Scenario())
+    )
+
+
+def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
+    """A scenario from YAML text (a file's contents), checked like ``load_scenario``."""
+    return _checked(where, lambda: yaml_load_typed(schema=Scenario, data=text, defaults=Scenario()))
+
+
+def scenario_yaml(scenario: Scenario | None = None) -> str:
+    """The scenario as YAML (every setting, variants tagged)."""
+    return yaml_dump_typed(scenario if scenario is not None else Scenario())
+
+
+def _checked(where: str, load) -> Scenario:
+    try:
+        sc = load()
+    except RuntimeError as e:
+        raise MogError(f"{where}: {str(e).splitlines()[0]}") from None
+    try:
+        check_scenario(sc)
+    except MogError as e:
+        raise MogError(f"{where}: {e}") from None
+    return sc
+
+
+def check_scenario(sc: Scenario) -> None:
+    """Refuses a setting that would only fail once the robot is running."""
+    sc.planner.check()
+    if not (
+        isinstance(sc.robot.reach, (int, float)) and math.isfinite(sc.robot.reach) and sc.robot.reach > 0
+    ):
+        raise MogError(f"robot.reach must be > 0 m, got {sc.robot.reach}")
+
+
+HEADER = """\
+# The default pick-and-place scenario: every setting, generated from mog_drake.scenario.Scenario
+# (python -m mog_drake.scenario); SI units. Copy it, keep what you change, run:
+#   mog-drake pick --scenario my.yaml
+# Omitted keys keep these values. Variants are chosen by YAML tag:
+#   scene: !ClutteredScene {...} (the default, written untagged), !RowScene {...}, !SceneFile {file: ...}
+#   hardware: {camera: !RealSenseSource {...} (the default), !ReplaySource {dir: ...}}
+"""
+
+if __name__ == "__main__":
+    SCENARIO_YAML.write_text(HEADER + scenario_yaml())
+    print(f"wrote {SCENARIO_YAML}")

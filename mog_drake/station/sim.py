@@ -1,0 +1,245 @@
+"""The simulated station: a UR5 + gripper + table + bin + prisms + overhead RGB-D camera in one
+MultibodyPlant, exporting the port contract (`mog_drake.station`). Its modelling is the grasp
+verifier's too (`mog_drake.sim.models`)."""
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    CollisionFilterDeclaration,
+    MakeRenderEngineVtk,
+    RenderEngineVtkParams,
+)
+from pydrake.lcm import DrakeLcm
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant
+from pydrake.multibody.tree import PdControllerGains, SpatialInertia
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
+from pydrake.systems.sensors import RgbdSensor
+from pydrake.visualization import ApplyVisualizationConfig
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import GripperGeometry
+from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, camera_pose
+from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
+from mog_drake.sim.models import (
+    add_bin,
+    add_gripper_fingers,
+    add_prism,
+    add_table,
+    filter_gripper_self_collisions,
+    pose_to_transform,
+)
+from mog_drake.sim.ur5 import JOINT_NAMES, URDF_PATH, base_transform, palm_in_flange
+
+# Meshcat needs no LCM: an in-memory one keeps ApplyVisualizationConfig off the network.
+_NO_LCM = DrakeLcm("memq://null")
+
+
+class _DesiredState(LeafSystem):
+    """Arm state [q, v] (12, the interpolated ur5.position) + gripper.position (1) -> desired
+    state (8 positions, 8 velocities) of the arm's and fingers' PD actuators.
+
+    The jaws go to a commanded opening at the gripper's speed setting (``speed``, m/s per
+    jaw), as the Robotiq does: a closing command moves the fingers' setpoint at that speed,
+    and the force limit stops them on contact. (A setpoint that jumped would slam the fingers
+    shut at whatever speed the force limit and damping allow, several times the real one.)"""
+
+    def __init__(self, gripper: GripperGeometry, speed: float, period: float = 0.01):
+        super().__init__()
+        self._t = gripper.plate_thickness
+        self._max = gripper.opening - gripper.plate_thickness
+        self._rate = 2.0 * speed  # opening rate (m/s), both jaws
+        self._period = period
+        self.DeclareVectorInputPort("arm_state", 12)
+        self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
+        # Setpoint opening w(t) = w_k + rate_k (t - t_k) between updates: [w_k, rate_k, t_k].
+        # Updated every ``period``, not every plant step: the ramp is exact in between.
+        self._w = self.DeclareDiscreteState([self._max, 0.0, 0.0])  # starts open
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._advance)
+        self.DeclareVectorOutputPort("desired_state", 16, self._calc)
+
+    def _advance(self, context, discrete_state) -> None:
+        t = context.get_time()
+        w_k, rate, t_k = context.get_discrete_state(self._w).value()
+        w = w_k + rate * (t - t_k)
+        target = min(max(float(self._cmd.Eval(context)[0]), 0.0), self._max)
+        rate = min(max((target - w) / self._period, -self._rate), self._rate)
+        discrete_state.get_mutable_vector(self._w).SetFromVector([w, rate, t])
+
+    def _calc(self, context, output) -> None:
+        x = self.get_input_port(0).Eval(context)
+        w_k, rate, t_k = context.get_discrete_state(self._w).value()
+        half = (w_k + rate * (context.get_time() - t_k) + self._t) / 2
+        out = np.empty(16)
+        out[:6], out[6], out[7] = x[:6], -half, half
+        out[8:14], out[14], out[15] = x[6:], -rate / 2, rate / 2
+        output.SetFromVector(out)
+
+
+class _ArmPositions(LeafSystem):
+    def __init__(self, n_state_robot: int):
+        super().__init__()
+        self.DeclareVectorInputPort("state", n_state_robot)
+        self.DeclareVectorOutputPort(
+            "ur5.position_measured", 6, lambda c, o: o.SetFromVector(self.get_input_port(0).Eval(c)[:6])
+        )
+
+
+class _GripperState(LeafSystem):
+    """Plant state -> (inner jaw opening, its rate): read from the finger joints' entries of the
+    state vector (a pure function of the input)."""
+
+    def __init__(self, plant, left, right, thickness: float):
+        super().__init__()
+        nq = plant.num_positions()
+        self._q = (left.position_start(), right.position_start())
+        self._v = (nq + left.velocity_start(), nq + right.velocity_start())
+        self._t = thickness
+        self.DeclareVectorInputPort("state", plant.num_multibody_states())
+        self.DeclareVectorOutputPort("gripper.state_measured", 2, self._calc)
+
+    def _calc(self, context, output) -> None:
+        x = self.get_input_port(0).Eval(context)
+        (ql, qr), (vl, vr) = self._q, self._v
+        output.SetFromVector([x[qr] - x[ql] - self._t, x[vr] - x[vl]])
+
+
+def scene_from_spec(spec) -> Scene:
+    """The objects of a scenario's ``scene``: a cluttered table, a row class, or a file."""
+    if isinstance(spec, SceneFile):
+        return Scene.load(spec.file)
+    rng = np.random.default_rng(spec.seed)
+    if isinstance(spec, RowScene):
+        return row_scene(spec.row_class, rng)
+    if isinstance(spec, ClutteredScene):
+        return cluttered_scene(
+            rng, inventory=spec.inventory, n_objects=spec.n_objects or None, params=ClutterParams()
+        )
+    raise MogError(f"scene must be one of !ClutteredScene, !RowScene, !SceneFile, got {spec!r}")
+
+
+class StationHandles:
+    """What tests and the simulation driver may need beyond the ports."""
+
+    def __init__(self, plant, scene_graph, robot, bodies, scene):
+        self.plant = plant
+        self.scene_graph = scene_graph
+        self.robot = robot
+        self.bodies = bodies
+        self.scene = scene
+
+
+def hold_still(scenario: Scenario, station, context) -> None:
+    """Fixes the station's inputs: arm at its observe pose, gripper open."""
+    station.GetInputPort("ur5.position").FixValue(context, np.array(scenario.robot.home))
+    station.GetInputPort("gripper.position").FixValue(context, [OPEN_WIDTH])
+
+
+def render_still(scenario: Scenario, station, context=None):
+    """(rgb, depth) of a simulated station at rest: arm at its observe pose, gripper open."""
+    ctx = context if context is not None else station.CreateDefaultContext()
+    hold_still(scenario, station, ctx)
+    rgb = station.GetOutputPort("camera.rgb_image").Eval(ctx).data
+    depth = station.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
+    return rgb, depth
+
+
+def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
+    """Builds the simulated station (see `mog_drake.station` for its ports). Returns
+    (diagram, handles)."""
+    scene = scene or scene_from_spec(scenario.scene)
+    gripper = GripperGeometry()
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(scenario.contact.plant, builder)
+    x0, x1, y0, y1 = scenario.table
+    X_table = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
+    add_table(plant, scenario.contact, size=(x1 - x0 + 0.6, y1 - y0 + 0.4), X_WT=X_table)
+    add_bin(
+        plant,
+        scenario.contact,
+        RigidTransform([*scenario.bin.center, 0.0]),
+        inner=tuple(scenario.bin.inner),
+        depth=scenario.bin.depth,
+        wall=scenario.bin.wall,
+    )
+
+    robot = Parser(plant).AddModels(str(URDF_PATH))[0]
+    plant.WeldFrames(
+        plant.world_frame(), plant.GetFrameByName("base_link", robot), base_transform(scenario.robot.base)
+    )
+    # (GetJointActuatorIndices(instance) is empty before Finalize: look the motors up by name.)
+    for name in JOINT_NAMES:
+        plant.GetJointActuatorByName(f"{name}_motor", robot).set_controller_gains(
+            PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
+        )
+    # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
+    palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
+    plant.WeldFrames(plant.GetFrameByName("tool0", robot), palm.body_frame(), palm_in_flange())
+    plant.RegisterVisualGeometry(
+        palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
+    )
+    (left, jl), (right, jr) = add_gripper_fingers(
+        plant, robot, palm, gripper, scenario.gripper, scenario.contact
+    )
+    plant.set_gravity_enabled(robot, False)  # a position-controlled arm tracks its command
+
+    bodies = {i: add_prism(plant, scene.shape(i), f"object_{i}", scenario.contact) for i in range(len(scene))}
+    plant.Finalize()
+    # The arm's links and gripper never collide with each other (self-collision is not
+    # modelled; the motion plans keep clear), nor the base and shoulder with the table they stand on.
+    arm_bodies = [plant.GetBodyByName(n, robot) for n in ["base_link"] + [f"link_{i}" for i in range(1, 7)]]
+    filter_gripper_self_collisions(plant, scene_graph, arm_bodies + [palm, left, right])
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeBetween(
+            plant.CollectRegisteredGeometries(arm_bodies[:2]),
+            plant.CollectRegisteredGeometries([plant.world_body()]),
+        )
+    )
+    for i, body in bodies.items():
+        plant.SetDefaultFloatingBaseBodyPose(body, pose_to_transform(*scene.objects[i].pose))
+    q_home = np.array(scenario.robot.home, dtype=float)
+    for k, idx in enumerate(plant.GetJointIndices(robot)[:6]):
+        plant.get_mutable_joint(idx).set_default_positions([q_home[k]])
+    jl.set_default_translation(-gripper.opening / 2)
+    jr.set_default_translation(gripper.opening / 2)
+
+    # Commanded positions -> [q, v]: the velocity feed-forward a position-controlled arm has.
+    interp = builder.AddSystem(StateInterpolatorWithDiscreteDerivative(6, plant.time_step(), True))
+    cmd = builder.AddSystem(_DesiredState(gripper, scenario.gripper.close_speed))
+    builder.Connect(interp.get_output_port(), cmd.get_input_port(0))
+    builder.Connect(cmd.get_output_port(), plant.get_desired_state_input_port(robot))
+    builder.ExportInput(interp.get_input_port(), "ur5.position")
+    builder.ExportInput(cmd.get_input_port(1), "gripper.position")
+    arm = builder.AddSystem(_ArmPositions(plant.num_multibody_states(robot)))
+    builder.Connect(plant.get_state_output_port(robot), arm.get_input_port())
+    builder.ExportOutput(arm.get_output_port(), "ur5.position_measured")
+    gs = builder.AddSystem(_GripperState(plant, jl, jr, gripper.plate_thickness))
+    builder.Connect(plant.get_state_output_port(), gs.get_input_port())
+    builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
+
+    cam = scenario.camera
+    scene_graph.AddRenderer(cam.renderer_name, MakeRenderEngineVtk(RenderEngineVtkParams()))
+    color, depth = cam.MakeCameras()
+    sensor = builder.AddSystem(
+        RgbdSensor(scene_graph.world_frame_id(), RigidTransform(camera_pose(cam)), color, depth)
+    )
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
+    builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
+    builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")
+    builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
+    if meshcat is not None:
+        ApplyVisualizationConfig(
+            scenario.visualization,
+            builder,
+            plant=plant,
+            scene_graph=scene_graph,
+            meshcat=meshcat,
+            lcm=_NO_LCM,
+        )
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return diagram, StationHandles(plant, scene_graph, robot, bodies, scene)

@@ -1,0 +1,171 @@
+"""The Controller system: executes pick decisions on the station's arm and gripper ports (see
+`mog_drake.systems.perception` for how the three application systems talk)."""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from mog_drake.errors import MogError
+from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.systems.perception import _Immutable
+from mog_drake.systems.planner import Decision
+
+
+@dataclass
+class ControllerState(_Immutable):
+    """Replaced by a new value on every change (``attempts`` is a new list of new dicts)."""
+
+    mode: str = "settle"
+    t_mode: float = 0.0
+    counter: int = 0
+    q_hold: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    gripper: float = OPEN_WIDTH
+    plan: dict | None = None
+    attempts: list = field(default_factory=list)
+    # Grasps the arm could not reach, in order: {"t", "grasp", "reason", "planning_time"}.
+    skipped: list = field(default_factory=list)
+    unreachable: int = 0  # unreachable grasps in a row
+    finished: str = ""
+
+
+@dataclass
+class ControllerConfig:
+    """The controller's timing (s)."""
+
+    # Between the application systems' updates (perception, planner, controller).
+    period: float = 0.01
+    # The jaws close for as long as a full close takes at the gripper's speed, plus this.
+    close_margin: float = 0.2
+    open_time: float = 0.35  # the jaws open over the bin
+    settle_time: float = 0.2  # at the start, before the first image
+    max_unreachable: int = 3  # unreachable grasps in a row that end the run
+
+
+class ControllerSystem(LeafSystem):
+    """A state machine per attempt: ask for a grasp, move above it, descend, close with the
+    force limit, lift, move above the bin, open, return to the observe pose, ask again.
+    ``close_time``: how long the jaws close (see ControllerConfig.close_margin)."""
+
+    MOTIONS = {"approach": "close", "lift": "to_bin", "to_bin": "open", "home": "observe"}
+
+    def __init__(
+        self,
+        motion,
+        home,
+        bin_xy,
+        bin_height: float,
+        open_width: float = OPEN_WIDTH,
+        close_time: float = 0.45,
+        time_limit: float = 600.0,
+        config: ControllerConfig | None = None,
+    ):
+        super().__init__()
+        cfg = config or ControllerConfig()
+        self._motion = motion
+        self._home = np.asarray(home, float)
+        self._bin = (bin_xy, bin_height)
+        self._open = open_width
+        self._close_time, self._open_time, self._settle = close_time, cfg.open_time, cfg.settle_time
+        self._max_unreachable = cfg.max_unreachable
+        period = cfg.period
+        self._limit = time_limit
+        self._q = self.DeclareVectorInputPort("ur5.position_measured", 6)
+        self._g = self.DeclareVectorInputPort("gripper.state_measured", 2)
+        self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(Decision()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(ControllerState(q_hold=self._home.copy())))
+        # Outputs read state (and time) only: no feedthrough from the inputs.
+        only_state = {self.all_state_ticket(), self.time_ticket()}
+        self.DeclareVectorOutputPort("ur5.position", 6, self._out_q, prerequisites_of_calc=only_state)
+        self.DeclareVectorOutputPort("gripper.position", 1, self._out_g, prerequisites_of_calc=only_state)
+        self.DeclareVectorOutputPort("request", 1, self._out_req, prerequisites_of_calc=only_state)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+
+    def state(self, context) -> ControllerState:
+        return context.get_abstract_state(self._state).get_value()
+
+    def _update(self, context, state) -> None:
+        s = self.state(context)
+        t = context.get_time()
+        new = ControllerState(**{**s.__dict__, "attempts": list(s.attempts)})
+        dt = t - s.t_mode
+        if s.mode == "done":
+            return
+        if t >= self._limit and s.mode in ("observe", "wait", "settle"):
+            new.mode, new.finished = "done", "time limit"
+        elif s.mode == "settle" and dt >= self._settle:
+            new.mode, new.counter, new.t_mode = "wait", s.counter + 1, t
+        elif s.mode == "observe":
+            new.mode, new.counter, new.t_mode = "wait", s.counter + 1, t
+        elif s.mode == "wait":
+            d = self._decision.Eval(context)
+            if d.counter == s.counter and d.decision is not None:
+                dec = d.decision
+                if dec.status != "grasp":
+                    new.mode, new.finished = "done", dec.status
+                else:
+                    try:
+                        new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
+                    except MogError as e:
+                        # Observe again: the planner does not repeat its last few grasps.
+                        new.skipped = [
+                            *s.skipped,
+                            {
+                                "t": t,
+                                "grasp": dec.grasp.tolist(),
+                                "reason": str(e),
+                                "planning_time": dec.planning_time,
+                            },
+                        ]
+                        new.unreachable = s.unreachable + 1
+                        new.mode, new.t_mode = "observe", t
+                        if new.unreachable >= self._max_unreachable:
+                            new.mode = "done"
+                            new.finished = f"unreachable grasp ({new.unreachable} in a row): {e}"
+                    else:
+                        new.mode, new.t_mode, new.unreachable = "approach", t, 0
+                        new.attempts.append(
+                            {
+                                "start": t,
+                                "group": list(dec.group),
+                                "grasp": dec.grasp.tolist(),
+                                "planning_time": dec.planning_time,
+                                "objects_seen": d.objects_seen,
+                                "physics_checks": dec.physics_checks,
+                                "expected": list(dec.expected),
+                                **({"unrecognised": True} if dec.unrecognised else {}),
+                            }
+                        )
+        elif s.mode in self.MOTIONS:
+            traj = s.plan[s.mode]
+            if dt >= traj.end_time() + 0.05:
+                new.q_hold = traj.value(traj.end_time()).ravel()
+                new.mode, new.t_mode = self.MOTIONS[s.mode], t
+                if s.mode == "approach":
+                    new.gripper = 0.0
+                if s.mode == "home":
+                    new.attempts[-1] = {**new.attempts[-1], "end": t}
+                    new.plan = None
+        elif s.mode == "close" and dt >= self._close_time:
+            new.attempts[-1] = {**new.attempts[-1], "held_width": float(self._g.Eval(context)[0])}
+            new.mode, new.t_mode = "lift", t
+        elif s.mode == "open" and dt >= self._open_time:
+            new.mode, new.t_mode = "home", t
+        if s.mode == "to_bin" and new.mode == "open":
+            new.gripper = self._open
+        state.get_mutable_abstract_state(self._state).set_value(new)
+
+    def _out_q(self, context, output) -> None:
+        s = self.state(context)
+        if s.mode in self.MOTIONS and s.plan is not None:
+            traj = s.plan[s.mode]
+            output.SetFromVector(traj.value(min(context.get_time() - s.t_mode, traj.end_time())).ravel())
+        else:
+            output.SetFromVector(s.q_hold)
+
+    def _out_g(self, context, output) -> None:
+        output.SetFromVector([self.state(context).gripper])
+
+    def _out_req(self, context, output) -> None:
+        output.SetFromVector([self.state(context).counter])
