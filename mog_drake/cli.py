@@ -34,7 +34,7 @@ def _load_scene(args):
 
 def resolve_group(scene, group_arg, gripper=None) -> tuple[tuple[int, ...], str]:
     """The group to grasp: --group if given, else the scene's own, else Alg. 1's first group."""
-    from mog_drake.geometry import GripperGeometry, create_obj_groups, rank_obj_groups
+    from mog_drake.geometry import GripperGeometry
 
     if group_arg:
         for g in group_arg:
@@ -45,14 +45,7 @@ def resolve_group(scene, group_arg, gripper=None) -> tuple[tuple[int, ...], str]
         if len(set(group_arg)) != len(group_arg):
             raise MogError("--group names an object twice")
         return tuple(group_arg), "argument"
-    if scene.group is not None:
-        return tuple(scene.group), "scene"
-    gripper = gripper or GripperGeometry()
-    polys = scene.polygons()
-    ranked = rank_obj_groups(create_obj_groups(polys.centers), polys.d_fmin, gripper.w_g)
-    if not ranked:
-        raise MogError("the scene has no graspable group; pass --group")
-    return ranked[0], "largest"
+    return scene.default_group((gripper or GripperGeometry()).w_g)
 
 
 def _emit(args, doc: dict, text: str) -> None:
@@ -152,33 +145,20 @@ def cmd_scene_show(args) -> int:
 
 def cmd_check(args) -> int:
     from mog_drake.geometry import GripperGeometry, evaluate_grasps
+    from mog_drake.geometry.conditions import record_lines
 
     scene = _load_scene(args)
     gripper = GripperGeometry()
     group, source = resolve_group(scene, args.group, gripper)
     grasp = _grasp_arg(args.grasp)
-    ev = evaluate_grasps(scene.polygons(), group, grasp[None, :], gripper)
-    rec = ev.record(0)
+    rec = evaluate_grasps(scene.polygons(), group, grasp[None, :], gripper).record(0)
     doc = {"scene": args.scene, "group": list(group), "group_source": source, **rec}
-    lines = [
-        f"grasp      x={grasp[0]:.4f} m  y={grasp[1]:.4f} m  theta={math.degrees(grasp[2]):.1f} deg",
-        f"group      {list(group)} ({source})",
-        f"h0         {rec['h0'] * 1e3:.2f} mm   (b_l {_mm(rec['b_l'])}, b_r {_mm(rec['b_r'])})",
-        f"h_fmin     {rec['h_fmin'] * 1e3:.2f} mm",
-        "areas      " + ", ".join(f"A_{k}={v * 1e6:.1f} mm^2" for k, v in rec["areas"].items()),
-        f"diameter_ok {rec['diameter_ok']}   area_ok {rec['area_ok']}   collision_free {rec['collision_free']}",
-        f"verdict    {rec['verdict']}",
-    ]
-    if rec["other_objects_in_S"]:
-        lines.append(f"also in S  {rec['other_objects_in_S']} (not in the group)")
+    lines = record_lines(rec)
+    lines.insert(1, f"group      {list(group)} ({source})")
     if args.simulate or args.meshcat or args.record:
         res = _simulate(scene, group, grasp, args)
         doc["simulation"] = res.to_dict()
-        lines.append(
-            f"physics    success {res.success}   lifted {res.lifted}   opening {_mm(res.final_opening)}   "
-            f"{res.sim_time:.2f} s simulated in {res.wall_time:.2f} s"
-            + (f"   error: {res.error}" if res.error else "")
-        )
+        lines.append(res.text())
         if args.record:
             lines.append(f"replay     {args.record}")
     _emit(args, doc, "\n".join(lines))
@@ -210,12 +190,9 @@ def _simulate(scene, group, grasp, args):
     return res
 
 
-def _mm(v) -> str:
-    return "-" if v is None else f"{v * 1e3:.2f} mm"
-
-
 def cmd_candidates(args) -> int:
     from mog_drake.geometry import GripperGeometry, candidate_grasps, evaluate_grasps, rank_grasp_cands
+    from mog_drake.geometry.conditions import candidate_rows
 
     scene = _load_scene(args)
     gripper = GripperGeometry()
@@ -242,19 +219,7 @@ def cmd_candidates(args) -> int:
         "candidates": recs,
     }
     shown = [r for r in recs if r["verdict"] != "collision" or args.all][: args.limit]
-    rows = [
-        {
-            "rank": r["rank"],
-            "x_mm": r["grasp"][0] * 1e3,
-            "y_mm": r["grasp"][1] * 1e3,
-            "theta_deg": math.degrees(r["grasp"][2]),
-            "h0_mm": r["h0"] * 1e3,
-            "A_T_mm2": r["area_total"] * 1e6,
-            "min_A_i_mm2": min(r["areas"].values()) * 1e6,
-            "verdict": r["verdict"],
-        }
-        for r in shown
-    ]
+    rows = candidate_rows(shown)
     text = (
         f"group {list(group)} ({source}); h_fmin = {ev.h_fmin * 1e3:.2f} mm; {len(recs)} candidates: "
         + ", ".join(f"{k} {v}" for k, v in counts.items())
@@ -274,23 +239,7 @@ def cmd_plan(args) -> int:
     planner = GraspPlanner(DrakeVerifier(), PlannerConfig(method=args.method, max_physics=args.max_physics))
     res = planner.plan(scene, group, rng=np.random.default_rng(args.seed))
     doc = {"scene": args.scene, "group_source": source, **res.to_dict()}
-    t = res.times
-    lines = [
-        f"method     {res.method}   group {list(res.group)} ({source})",
-        f"candidates {res.candidates} collision-free"
-        + (f", {res.passed_conditions} pass both conditions" if res.passed_conditions >= 0 else ""),
-        f"tested     {res.tested} in physics",
-        "grasp      "
-        + (
-            "none found"
-            if res.grasp is None
-            else f"x={res.grasp[0]:.4f} m  y={res.grasp[1]:.4f} m  theta={math.degrees(res.grasp[2]):.1f} deg"
-            f"   lifted {res.result.lifted}"
-        ),
-        f"time       {t['total']:.3f} s (candidates {t['candidates'] * 1e3:.1f} ms, filter {t['filter'] * 1e3:.1f} ms, "
-        f"rank {t['rank'] * 1e3:.1f} ms, physics {t['physics']:.3f} s)",
-    ]
-    _emit(args, doc, "\n".join(lines))
+    _emit(args, doc, res.text().replace(f"group {list(res.group)}", f"group {list(res.group)} ({source})", 1))
     return 0
 
 
@@ -323,8 +272,6 @@ def cmd_eval(args) -> int:
 def _cmd_eval(args) -> int:
     import os
 
-    from mog_drake.experiments import figures
-
     out = Path(args.out)
     jobs = args.jobs or os.cpu_count() or 1
     progress = not args.json
@@ -350,35 +297,14 @@ def _cmd_eval(args) -> int:
             jobs,
             args.ray,
             progress,
-            scenario=scenario,
+            scenario,
         )
-        png = figures.picking_figure(summary, out / "picking.png")
-        text = format_table(summary["rows"], picking_eval.COLUMNS)
-        text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
-        text += "\n" + picking_eval.losses_text(summary)
-        import json as _json
-
-        if args.compare:
-            from mog_drake.experiments.sweep import load_results
-
-            other = Path(args.compare) / "results.jsonl"
-            if not other.exists():
-                raise MogError(f"--compare: {other} does not exist (give a picking sweep's --out folder)")
-            paired = picking_eval.compare(list(load_results(other, repair=False).values()), results)
-            summary["compare"] = {"a": str(args.compare), **paired}
-            text += (
-                f"\n\npaired with {args.compare} (A) on {paired['tables']} common runs; B = {out}\n"
-                + picking_eval.compare_text(paired)
-            )
-        (out / "summary.json").write_text(_json.dumps(summary, indent=2))
-        _emit(args, summary, text + f"\n\nresults: {out / 'results.jsonl'}  figure: {png}")
-        return 0
-    classes = _parse_classes(args.classes)
-    if args.experiment == "conditions":
+        text = picking_eval.report(summary, results, out, args.compare)
+    elif args.experiment == "conditions":
         from mog_drake.experiments import conditions
 
         summary, _ = conditions.run(
-            classes,
+            _parse_classes(args.classes),
             args.scenes_per_class,
             args.seed,
             out,
@@ -388,16 +314,7 @@ def _cmd_eval(args) -> int:
             args.positions,
             args.orientations,
         )
-        png = figures.conditions_figure(summary, out / "conditions.png")
-        cols = conditions.COLUMNS
-        text = format_table(summary["rows"], cols)
-        fns = summary["false_negatives"]
-        text += f"\n\nfalse negatives: {len(fns)}" + "".join(
-            f"\n  class {f['class']}, scene {f['scene_seed']}: {f['explanation']}\n    {f['replay']}"
-            for f in fns[:20]
-        )
-        if len(fns) > 20:
-            text += f"\n  ... {len(fns) - 20} more in {out / 'summary.json'}"
+        text = conditions.report(summary, out)
     else:
         from mog_drake.experiments import planning_eval
         from mog_drake.planning.planner import METHODS
@@ -407,7 +324,7 @@ def _cmd_eval(args) -> int:
         if bad or not methods:
             raise MogError(f"--methods: unknown {bad or args.methods} (known: {', '.join(METHODS)})")
         summary, _ = planning_eval.run(
-            classes,
+            _parse_classes(args.classes),
             args.scenes_per_class,
             args.seed,
             out,
@@ -419,12 +336,7 @@ def _cmd_eval(args) -> int:
             args.positions,
             args.orientations,
         )
-        png = figures.planner_figure(summary, out / "planner.png")
-        text = format_table(summary["rows"], planning_eval.COLUMNS)
-    import json as _json
-
-    (out / "summary.json").write_text(_json.dumps(summary, indent=2))
-    text += f"\n\nresults: {out / 'results.jsonl'}  summary: {out / 'summary.json'}  figure: {png}"
+        text = planning_eval.report(summary, out)
     _emit(args, summary, text)
     return 0
 
@@ -458,7 +370,7 @@ def _scenario(args):
 
 def cmd_pick(args) -> int:
     """Builds the pick-and-place Diagram and runs it until the table is clear."""
-    from mog_drake.systems.pick import run_pick
+    from mog_drake.systems.pick import attempt_line, run_pick, run_text
 
     sc = _scenario(args)
     meshcat = None
@@ -471,19 +383,7 @@ def cmd_pick(args) -> int:
 
     def line(k, a):
         if not args.json:
-            print(
-                f"attempt {k:3d}  "
-                + (
-                    f"unrecognised blob(s) {a['group']}  "
-                    if a.get("unrecognised")
-                    else f"group {a['group']}  "
-                )
-                + (f"expected {len(a['expected'])}  " if a.get("expected") else "")
-                + (f"lifted {len(a['carried'])}  " if a.get("carried") is not None else "")
-                + f"picked {a['picked']}  in bin {a['in_bin']}  "
-                f"planning {a['planning_time']:.2f} s  ({a['physics_checks']} physics checks)",
-                flush=True,
-            )
+            print(attempt_line(k, a), flush=True)
 
     hw = sc.hardware.enabled
     if not args.json and not hw:
@@ -503,33 +403,11 @@ def cmd_pick(args) -> int:
     _emit(
         args,
         {"summary": summary, "attempts": run.attempts, "skipped": run.skipped},
-        "\n"
-        + format_table(
-            [summary],
-            [
-                "objects",
-                "attempts",
-                "success_rate",
-                "picked_pct",
-                "objects_per_success",
-                "pph",
-                "robot_time_s",
-                "planning_time_s",
-                "finished",
-            ],
-        )
-        + "".join(f"\nnot in the bin: object {i} ({sc_obj}) {w} at {p}" for i, (w, p), sc_obj in _left(run))
-        + "".join(f"\nskipped at t={k['t']:.1f} s, unreachable: {k['reason']}" for k in run.skipped)
-        + (f"\nreplay: {args.record}" if args.record else ""),
+        run_text(run, summary) + (f"\nreplay: {args.record}" if args.record else ""),
     )
     if args.meshcat and sys.stdin.isatty():
         input("Meshcat is serving the replay; press Enter to quit. ")
     return 0
-
-
-def _left(run):
-    """(id, (where, position), shape) of every object the run left outside the bin."""
-    return [(i, wp, run.shapes[i] if run.shapes else "?") for i, wp in sorted(run.left.items())]
 
 
 def cmd_gripper(args) -> int:
@@ -599,123 +477,21 @@ def cmd_diagram(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from mog_drake.experiments.bench import bench_geometry
+    from mog_drake.experiments import bench
 
-    if args.what == "geometry":
-        rows = bench_geometry(args.scenes, args.seed)
-        _emit(args, {"geometry": rows}, format_table(rows))
-    elif args.what == "verifier":
-        from mog_drake.experiments.bench import bench_verifier
-
-        rows = bench_verifier(args.scenes, args.seed)
-        _emit(args, {"verifier": rows}, format_table(rows))
-    elif args.what == "perception":
-        from mog_drake.experiments.bench import bench_perception
-
-        rows = bench_perception(args.scenes, args.seed, args.toppled)
-        _emit(args, {"perception": rows}, format_table(rows))
-    elif args.what == "station":
-        from mog_drake.experiments.bench import bench_station
-
-        rows = bench_station(args.seed)
-        _emit(args, {"station": rows}, format_table(rows))
-    elif args.what == "replanning":
-        from mog_drake.experiments.bench import bench_replanning
-        from mog_drake.progress import Progress
-
-        rows = bench_replanning(
-            args.scenes, args.seed, Progress(2 * args.scenes, "replanning", enabled=not args.json)
-        )
-        _emit(args, {"replanning": rows}, format_table(rows))
-    elif args.what == "agreement":
-        from mog_drake.experiments.bench import bench_agreement
-        from mog_drake.progress import Progress
-
-        bar = Progress(args.candidates, "agreement", enabled=not args.json)
-        doc = bench_agreement(args.candidates, args.seed, progress=bar)
-        bar.close()
-        summary = {k: v for k, v in doc.items() if k != "disagreements"}
-        text = format_table([summary]) + "".join(
-            f"\n  disagreement: class {d['class']} scene seed {d['scene_seed']} grasp "
-            f"{[round(x, 5) for x in d['grasp']]}: 5 ms {d['coarse']['success']} ({d['coarse']['error'] or 'ok'}), "
-            f"fine {d['fine']['success']} ({d['fine']['error'] or 'ok'})"
-            for d in doc["disagreements"]
-        )
-        _emit(args, doc, text)
-    elif args.what == "hold":
-        from mog_drake.experiments.bench import bench_hold
-        from mog_drake.progress import Progress
-
-        bar = Progress(args.scenes, "hold", enabled=not args.json)
-        doc = bench_hold(args.scenes, args.seed, args.window, progress=bar)
-        bar.close()
-        text = format_table(doc["rows"]) + (
-            f"\nall checks: {doc['wall_s']:.1f} s with the full hold, {doc['wall_settled_s']:.1f} s ending it "
-            f"once settled ({doc['window_s']:g} s under {doc['settle_speed_m_s'] * 1e3:g} mm/s); "
-            f"{len(doc['differing'])} verdicts differ"
-        )
-        text += "".join(
-            f"\n  differs: {d['kind']} group {d['group']} grasp {[round(x, 5) for x in d['grasp']]}: "
-            f"full hold {d['full_hold']['success']} lifted {d['full_hold']['lifted']}, "
-            f"settled {d['settled']['success']} lifted {d['settled']['lifted']}"
-            for d in doc["differing"]
-        )
-        _emit(args, doc, text)
+    doc, text = bench.run(
+        args.what, args.scenes, args.seed, args.toppled, args.candidates, args.window, progress=not args.json
+    )
+    _emit(args, doc, text)
     return 0
 
 
 def cmd_demo(args) -> int:
     """The planner's geometry on two example scenes: a table and a picture each."""
-    from mog_drake import plotting
-    from mog_drake.geometry import GripperGeometry, candidate_grasps, evaluate_grasps, rank_grasp_cands
-    from mog_drake.scenes import cluttered_scene, row_scene
+    from mog_drake.experiments.geometry_demo import geometry_demo
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    gripper = GripperGeometry()
-    docs = []
-    for name, scene in (
-        ("row4", row_scene(4, np.random.default_rng(args.seed))),
-        ("cluttered", cluttered_scene(np.random.default_rng(args.seed))),
-    ):
-        scene.save(out / f"{name}.yaml")
-        group, source = resolve_group(scene, None, gripper)
-        polys = scene.polygons()
-        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group), gripper)
-        order = rank_grasp_cands(ev)
-        png = plotting.save(
-            plotting.scene_figure(
-                scene,
-                group,
-                ev,
-                order,
-                gripper=gripper,
-                title=f"{name}: group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.1f} mm",
-            ),
-            out / f"{name}.png",
-        )
-        top = [int(i) for i in order if ev.passed[i]][:5]
-        rows = [
-            {
-                "rank": k,
-                "x_mm": ev.grasps[i, 0] * 1e3,
-                "y_mm": ev.grasps[i, 1] * 1e3,
-                "theta_deg": math.degrees(ev.grasps[i, 2]),
-                "h0_mm": ev.h0[i] * 1e3,
-                "A_T_mm2": ev.area_total[i] * 1e6,
-            }
-            for k, i in enumerate(top)
-        ]
-        counts = {v: int(sum(ev.verdict(i) == v for i in range(len(ev)))) for v in plotting.VERDICT_COLORS}
-        print(
-            f"\n{name}: {len(scene)} objects, group {list(group)} ({source}), h_fmin {ev.h_fmin * 1e3:.2f} mm"
-        )
-        print("candidates: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
-        print(format_table(rows) if rows else "(no candidate passes both conditions)")
-        print(f"picture: {png}")
-        docs.append({"name": name, "group": list(group), "counts": counts, "png": str(png)})
-    if args.json:
-        print(json.dumps({"scenes": docs}, indent=2))
+    doc, text = geometry_demo(args.out, args.seed)
+    _emit(args, doc, text.strip())
     return 0
 
 

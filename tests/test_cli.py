@@ -93,7 +93,7 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
 
 
 def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():
-    from mog_drake.experiments.bench import hold_verifiers
+    from mog_drake.experiments.bench.physics import hold_verifiers
     from mog_drake.scenario import Scenario
 
     # The built-in scenario ends its holds once settled: the reference must not.

@@ -263,3 +263,25 @@ def run(
     summary = summarize(results)
     summary["false_negatives"] = explain_false_negatives(summary["false_negatives"])
     return summary, results
+
+
+def report(summary: dict, out) -> str:
+    """Writes the figure and summary.json of a conditions sweep in ``out``; returns its text."""
+    import json
+    from pathlib import Path
+
+    from mog_drake.experiments import figures
+    from mog_drake.tables import format_table
+
+    out = Path(out)
+    png = figures.conditions_figure(summary, out / "conditions.png")
+    text = format_table(summary["rows"], COLUMNS)
+    fns = summary["false_negatives"]
+    text += f"\n\nfalse negatives: {len(fns)}" + "".join(
+        f"\n  class {f['class']}, scene {f['scene_seed']}: {f['explanation']}\n    {f['replay']}"
+        for f in fns[:20]
+    )
+    if len(fns) > 20:
+        text += f"\n  ... {len(fns) - 20} more in {out / 'summary.json'}"
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return text + f"\n\nresults: {out / 'results.jsonl'}  summary: {out / 'summary.json'}  figure: {png}"

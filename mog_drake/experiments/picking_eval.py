@@ -277,3 +277,34 @@ def losses_text(summary: dict) -> str:
                 "whole and nothing pushed"
             )
     return "\n".join(lines)
+
+
+def report(summary: dict, results: list[dict], out, compare_dir: str | None = None) -> str:
+    """Writes the figure and summary.json of a picking sweep in ``out``; returns its text:
+    the table, the PPH ratio, the losses and, with ``compare_dir`` (another sweep's folder, A),
+    the paired differences of this one (B) on the tables both ran."""
+    import json
+    from pathlib import Path
+
+    from mog_drake.errors import MogError
+    from mog_drake.experiments import figures
+    from mog_drake.experiments.sweep import load_results
+    from mog_drake.tables import format_table
+
+    out = Path(out)
+    png = figures.picking_figure(summary, out / "picking.png")
+    text = format_table(summary["rows"], COLUMNS)
+    text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
+    text += "\n" + losses_text(summary)
+    if compare_dir:
+        other = Path(compare_dir) / "results.jsonl"
+        if not other.exists():
+            raise MogError(f"--compare: {other} does not exist (give a picking sweep's --out folder)")
+        paired = compare(list(load_results(other, repair=False).values()), results)
+        summary["compare"] = {"a": str(compare_dir), **paired}
+        text += (
+            f"\n\npaired with {compare_dir} (A) on {paired['tables']} common runs; B = {out}\n"
+            + compare_text(paired)
+        )
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return text + f"\n\nresults: {out / 'results.jsonl'}  figure: {png}"

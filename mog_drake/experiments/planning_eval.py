@@ -159,3 +159,20 @@ def run(
     ]
     results = run_sweep(tasks, planner_worker, out_dir, jobs, ray_address, "planner", progress)
     return summarize(results, methods), results
+
+
+def report(summary: dict, out) -> str:
+    """Writes the figure and summary.json of a planner sweep in ``out``; returns its text."""
+    import json
+    from pathlib import Path
+
+    from mog_drake.experiments import figures
+    from mog_drake.tables import format_table
+
+    out = Path(out)
+    png = figures.planner_figure(summary, out / "planner.png")
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return (
+        format_table(summary["rows"], COLUMNS)
+        + f"\n\nresults: {out / 'results.jsonl'}  summary: {out / 'summary.json'}  figure: {png}"
+    )

@@ -105,6 +105,7 @@ class PickDecision:
     groups_tried: int = 0
     partial: bool = False  # the grasp lifted part of a larger group it was planned for
     expected: tuple[int, ...] = ()  # objects the physics check lifted with this grasp
+    shapes: tuple[str, ...] = ()  # the shape of each object of ``group``, as perceived
     physics_checks: int = 0
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
@@ -123,6 +124,7 @@ class PickDecision:
             "groups_tried": self.groups_tried,
             "partial": self.partial,
             "expected": list(self.expected),
+            "shapes": list(self.shapes),
             "physics_checks": self.physics_checks,
             "planning_time": self.planning_time,
             "remembered": self.remembered,
@@ -231,6 +233,7 @@ def next_pick(
         _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
+    decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
 

@@ -101,6 +101,26 @@ class PlanResult:
     def found(self) -> bool:
         return self.grasp is not None
 
+    def text(self) -> str:
+        t = self.times
+        g = self.grasp
+        return "\n".join(
+            [
+                f"method     {self.method}   group {list(self.group)}",
+                f"candidates {self.candidates} collision-free"
+                + (f", {self.passed_conditions} pass both conditions" if self.passed_conditions >= 0 else ""),
+                f"tested     {self.tested} in physics",
+                "grasp      "
+                + (
+                    "none found"
+                    if g is None
+                    else f"x={g[0]:.4f} m  y={g[1]:.4f} m  theta={math.degrees(g[2]):.1f} deg   lifted {self.result.lifted}"
+                ),
+                f"time       {t['total']:.3f} s (candidates {t['candidates'] * 1e3:.1f} ms, filter {t['filter'] * 1e3:.1f} ms, "
+                f"rank {t['rank'] * 1e3:.1f} ms, physics {t['physics']:.3f} s)",
+            ]
+        )
+
     def to_dict(self) -> dict:
         return {
             "method": self.method,

@@ -29,6 +29,14 @@ class GraspResult:
     # is then only what was in the air at that moment, not objects held to the end.
     complete: bool = True
 
+    def text(self) -> str:
+        opening = "-" if np.isnan(self.final_opening) else f"{self.final_opening * 1e3:.2f} mm"
+        return (
+            f"physics    success {self.success}   lifted {self.lifted}   opening {opening}   "
+            f"{self.sim_time:.2f} s simulated in {self.wall_time:.2f} s"
+            + (f"   error: {self.error}" if self.error else "")
+        )
+
     def to_dict(self) -> dict:
         d = asdict(self)
         d["final_opening"] = None if np.isnan(self.final_opening) else float(self.final_opening)

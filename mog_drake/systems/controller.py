@@ -129,6 +129,7 @@ class ControllerSystem(LeafSystem):
                             {
                                 "start": t,
                                 "group": list(dec.group),
+                                "shapes": list(dec.shapes),
                                 "grasp": dec.grasp.tolist(),
                                 "planning_time": dec.planning_time,
                                 "objects_seen": d.objects_seen,

@@ -268,6 +268,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
                 # Lifted from the table (seen in the air as the arm left for the bin); those
                 # not in the bin at the end fell on the way.
                 a["carried"] = carried.get(done_attempts)
+                a["carried_shapes"] = [handles.scene.objects[i].shape for i in a["carried"] or ()]
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None
@@ -290,3 +291,41 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     run.sim_time = ctx.get_time()
     run.wall_time = time.perf_counter() - t0
     return run
+
+
+SUMMARY_COLUMNS = [
+    "objects",
+    "attempts",
+    "success_rate",
+    "picked_pct",
+    "objects_per_success",
+    "pph",
+    "robot_time_s",
+    "planning_time_s",
+    "finished",
+]
+
+
+def attempt_line(k: int, a: dict) -> str:
+    """One attempt of a run as a log line: what was grasped, by shape, and what came of it."""
+    what = "unrecognised blob(s)" if a.get("unrecognised") else " + ".join(a.get("shapes") or ()) or "?"
+    line = f"attempt {k:3d}  grasp of {len(a['group'])}: {what}"
+    if a.get("carried") is not None:
+        line += f"  -> lifted {len(a['carried'])}"
+    if a.get("picked") is not None:
+        line += f", {a['picked']} in the bin ({a['in_bin']} in all)"
+    return line + f"  [planning {a['planning_time']:.2f} s, {a['physics_checks']} physics checks]"
+
+
+def run_text(run: PickRun, summary: dict | None = None) -> str:
+    """A finished run as text: its summary table, what it left outside the bin and why, and
+    the grasps it skipped."""
+    from mog_drake.tables import format_table
+
+    text = "\n" + format_table([summary or run.summary()], SUMMARY_COLUMNS)
+    for i, (where, p) in sorted(run.left.items()):
+        shape = run.shapes[i] if run.shapes else "?"
+        text += f"\nnot in the bin: object {i} ({shape}) {where} at {p}"
+    for k in run.skipped:
+        text += f"\nskipped at t={k['t']:.1f} s, unreachable: {k['reason']}"
+    return text

@@ -14,17 +14,28 @@
 Object points no fitted polygon explains are reported as unrecognised blobs, each with its
 outline and top height (``scene.meta["unrecognised"]``).
 
-Pure numpy and shapely: no Drake import (the Perception LeafSystem wraps this).
+`Perceiver` runs the steps above. Pure numpy and shapely: no Drake import (the Perception LeafSystem wraps this).
 """
 
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import shapely
 
 from mog_drake.errors import MogError
-from mog_drake.geometry.polygon import convex_hull_ccw, polygon_centroid, transform
+from mog_drake.geometry.polygon import polygon_centroid, transform
+from mog_drake.perception.fitting import (
+    FIT_MARGIN,
+    NEGATIVE_WEIGHT,
+    _clusters,
+    _outline,
+    _seedings,
+    _signed_distance,
+    _soft_inside,
+    separate_overlaps,
+    symmetry_order,
+)
+from mog_drake.perception.pointcloud import backproject, chromaticity
 from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 
 
@@ -43,119 +54,6 @@ class PerceptionConfig:
     # spill onto the table, is kept. One seeding split two touching thin bars wrongly on some
     # pixel grids.
     separation_tries: int = 5
-
-
-def backproject(
-    depth: np.ndarray, X_WC: np.ndarray, fx: float, fy: float, cx: float, cy: float
-) -> np.ndarray:
-    """Depth image (H, W) -> (H, W, 3) points in the world frame (nan where depth is invalid)."""
-    h, w = depth.shape
-    u, v = np.meshgrid(np.arange(w), np.arange(h))
-    d = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan)
-    pc = np.stack([(u - cx) * d / fx, (v - cy) * d / fy, d], axis=-1)
-    return pc @ X_WC[:3, :3].T + X_WC[:3, 3]
-
-
-def chromaticity(rgb: np.ndarray) -> np.ndarray:
-    c = np.asarray(rgb, dtype=float)[..., :3]
-    return c / np.maximum(c.max(axis=-1, keepdims=True), 1e-6)
-
-
-def symmetry_order(vertices: np.ndarray, tol: float = 2e-4) -> int:
-    """Largest k in 1..8 such that turning the polygon by 2 pi / k about its centroid maps it
-    onto itself, each vertex within ``tol`` (m) of one."""
-    c = vertices.mean(axis=0)
-    v = vertices - c
-    for k in range(8, 1, -1):
-        r = transform(v, 0.0, 0.0, 2 * math.pi / k)
-        if all(np.min(np.linalg.norm(v - p, axis=1)) < tol for p in r):
-            return k
-    return 1
-
-
-def _signed_distance(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Max over a CCW convex polygon's edges of the outward distance: < 0 inside, and a lower
-    bound of the true distance outside (exact near an edge)."""
-    e = np.roll(poly, -1, axis=0) - poly
-    n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    return ((pts[:, None, :] - poly[None, :, :]) * n[None]).sum(-1).max(axis=1)
-
-
-def _soft_inside(pts: np.ndarray, poly: np.ndarray, s: float) -> np.ndarray:
-    """Smooth indicator of points inside a CCW convex polygon (1 deep inside, 0 outside)."""
-    return 1.0 / (1.0 + np.exp(np.clip(_signed_distance(pts, poly) / s, -50, 50)))
-
-
-def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) -> np.ndarray:
-    centres = pts[rng.choice(len(pts), size=k, replace=False)]
-    for _ in range(iters):
-        lab = np.argmin(((pts[:, None] - centres[None]) ** 2).sum(-1), axis=1)
-        centres = np.array([pts[lab == j].mean(axis=0) if np.any(lab == j) else centres[j] for j in range(k)])
-    return centres
-
-
-# A fit weighs each point that is not of its object (table, another colour, already explained)
-# this much against each of its object's points it covers, within this margin of its radius.
-NEGATIVE_WEIGHT = 1.5
-FIT_MARGIN = 0.004  # m
-
-
-def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
-    """Sets of k centres to fit k instances of one shape from, one set per try. k = 1: the
-    centroid. k = 2: the centroids of the two halves of the cluster split at its median along
-    each of 6 directions (k-means splits two bars lying side by side along the blob's longer
-    side, across both bars, and no seeding finds the split between them). k > 2: ``tries``
-    k-means seedings."""
-    if k == 1:
-        yield _kmeans(pts, 1, rng)
-    elif k == 2:
-        for a in np.arange(6) * np.pi / 6:
-            s = pts @ np.array([np.cos(a), np.sin(a)])
-            lo = s <= np.median(s)
-            if lo.all() or not lo.any():
-                continue
-            yield np.array([pts[lo].mean(axis=0), pts[~lo].mean(axis=0)])
-    else:
-        for _ in range(tries):
-            yield _kmeans(pts, k, rng)
-
-
-def _clusters(pts: np.ndarray, link: float) -> list[np.ndarray]:
-    """Connected clusters of 2-D points (points closer than ``link`` are connected), by grid labelling."""
-    if len(pts) == 0:
-        return []
-    cell = np.floor(pts / link).astype(np.int64)
-    keys = {}
-    for i, c in enumerate(map(tuple, cell)):
-        keys.setdefault(c, []).append(i)
-    parent = {c: c for c in keys}
-
-    def find(c):
-        while parent[c] != c:
-            parent[c] = parent[parent[c]]
-            c = parent[c]
-        return c
-
-    for c in keys:
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                nb = (c[0] + dx, c[1] + dy)
-                if nb in keys:
-                    ra, rb = find(c), find(nb)
-                    if ra != rb:
-                        parent[ra] = rb
-    groups: dict = {}
-    for c, idx in keys.items():
-        groups.setdefault(find(c), []).extend(idx)
-    return [np.array(sorted(v)) for v in groups.values()]
-
-
-def _outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
-    """Convex hull (CCW) of 2-D points, simplified to ``tol``; None if it has no area."""
-    hull = shapely.convex_hull(shapely.MultiPoint(pts)).simplify(tol)
-    if not isinstance(hull, shapely.Polygon) or hull.area <= tol**2:
-        return None
-    return convex_hull_ccw(np.asarray(hull.exterior.coords)[:-1])
 
 
 def within_reach(x: float, y: float, reach) -> bool:
@@ -353,101 +251,3 @@ class Perceiver:
                 best, best_s = p, ps
         best[2] = math.remainder(best[2], 2 * math.pi)
         return tuple(float(v) for v in best)
-
-
-def _penetration(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-    """Smallest translation of convex polygon ``a`` that separates it from ``b`` (separating
-    axis theorem), or None if they do not overlap."""
-    best = None
-    for poly in (a, b):
-        e = np.roll(poly, -1, axis=0) - poly
-        normals = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-        for n in normals:
-            pa, pb = a @ n, b @ n
-            depth = min(pa.max() - pb.min(), pb.max() - pa.min())
-            if depth <= 0:
-                return None
-            if best is None or depth < best[0]:
-                sign = -1.0 if pa.mean() < pb.mean() else 1.0
-                best = (depth, sign * n)
-    return best[1] * best[0]
-
-
-def separate_overlaps(objects, library, gap: float = 2e-4, iterations: int = 20):
-    """Fitted polygons of touching objects can overlap by a fraction of a millimetre; real
-    prisms cannot, and a physics check started from interpenetrating prisms starts with an
-    explosion. Each overlapping pair is pushed apart along its separating axis, half each,
-    until none overlaps. Returns (objects, number of corrections made)."""
-    objs = list(objects)
-    moved = 0
-    for _ in range(iterations):
-        polys = [transform(library[o.shape].vertices, o.x, o.y, o.theta) for o in objs]
-        centres = np.array([p.mean(axis=0) for p in polys]).reshape(-1, 2)
-        radii = np.array([np.linalg.norm(p - p.mean(axis=0), axis=1).max() for p in polys])
-        changed = False
-        for i in range(len(objs)):
-            for j in range(i + 1, len(objs)):
-                if np.linalg.norm(centres[i] - centres[j]) > radii[i] + radii[j]:
-                    continue
-                d = _penetration(polys[i], polys[j])
-                if d is None:
-                    continue
-                step = d / 2 + gap / 2 * d / np.linalg.norm(d)
-                for k, sgn in ((i, 1.0), (j, -1.0)):
-                    o = objs[k]
-                    objs[k] = SceneObject(o.shape, o.x + sgn * step[0], o.y + sgn * step[1], o.theta)
-                    polys[k] = polys[k] + sgn * step
-                    centres[k] = centres[k] + sgn * step
-                moved += 1
-                changed = True
-        if not changed:
-            break
-    return objs, moved
-
-
-SCORING_SYMMETRY_TOL = 1e-3
-
-
-def pose_errors(perceived: Scene, truth: Scene) -> list[dict]:
-    """Matches each true object to the nearest unmatched perceived object of the same shape.
-    Position error (m) between the polygons' centroids, yaw error modulo the shape's symmetry
-    (rad): a symmetric shape turned by its symmetry is the same polygon. Symmetry is judged to
-    ``SCORING_SYMMETRY_TOL`` (1 mm, the accuracy asked of perception): the library's pink
-    pentagon is regular within 0.5 mm, so a fit turned by 72 deg is the same footprint, not a
-    72 deg error. Unmatched: None. Also reports perceived objects matched to nothing (``extra``)."""
-
-    def centroid(scene, k):
-        return scene.polygon(k).mean(axis=0)
-
-    used = set()
-    out = []
-    for i, o in enumerate(truth.objects):
-        cands = [j for j, p in enumerate(perceived.objects) if p.shape == o.shape and j not in used]
-        c_true = centroid(truth, i)
-        if not cands:
-            out.append({"object": i, "shape": o.shape, "position": None, "yaw": None})
-            continue
-        j = min(cands, key=lambda j: float(np.linalg.norm(centroid(perceived, j) - c_true)))
-        used.add(j)
-        period = 2 * math.pi / symmetry_order(truth.library[o.shape].vertices, SCORING_SYMMETRY_TOL)
-        dyaw = abs(math.remainder(perceived.objects[j].theta - o.theta, period))
-        out.append(
-            {
-                "object": i,
-                "shape": o.shape,
-                "position": float(np.linalg.norm(centroid(perceived, j) - c_true)),
-                "yaw": dyaw,
-            }
-        )
-    for j in range(len(perceived)):
-        if j not in used:
-            out.append(
-                {
-                    "object": None,
-                    "shape": perceived.objects[j].shape,
-                    "position": None,
-                    "yaw": None,
-                    "extra": True,
-                }
-            )
-    return out

@@ -1,68 +1,12 @@
-"""Benchmarks that print tables. Speed is shown here, never asserted in tests."""
+"""The physics check: its speed, its agreement with a finer time step, and the settled hold."""
 
 from __future__ import annotations
-
-import time
-from functools import partial
 
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.scenes import row_scene
-
-
-def _timed(fn, repeats: int):
-    best = []
-    out = None
-    for _ in range(repeats):
-        t = time.perf_counter()
-        out = fn()
-        best.append(time.perf_counter() - t)
-    return float(np.median(best)), out
-
-
-def _filter_rank(polys, group, cands, gripper):
-    ev = evaluate_grasps(polys, group, cands, gripper)
-    order = rank_grasp_cands(ev)
-    return order[ev.passed[order]]
-
-
-def bench_geometry(
-    scenes_per_class: int = 20,
-    seed: int = 0,
-    repeats: int = 5,
-    classes=range(2, 8),
-    gripper: GripperGeometry | None = None,
-) -> list[dict]:
-    """Median time per scene of candidate generation (Np x Ntheta grasps + jaw collision
-    rejection), of filtering + ranking (h0, A_i, both conditions, sort by A_T) and in total,
-    for the paper's row classes. Each scene's figure is the median of ``repeats`` runs."""
-    gripper = gripper or GripperGeometry()
-    rows = []
-    for c in classes:
-        gen_t, fil_t, n_cands = [], [], []
-        for k in range(scenes_per_class):
-            scene = row_scene(c, np.random.default_rng([seed, c, k]))
-            polys = scene.polygons()
-            tg, cands = _timed(partial(gen_grasp_cands, polys, scene.group, gripper), repeats)
-            tf, _ = _timed(partial(_filter_rank, polys, scene.group, cands, gripper), repeats)
-            gen_t.append(tg)
-            fil_t.append(tf)
-            n_cands.append(len(cands))
-        tot = np.array(gen_t) + np.array(fil_t)
-        rows.append(
-            {
-                "objects": c,
-                "scenes": scenes_per_class,
-                "candidates": float(np.mean(n_cands)),
-                "generate_ms": 1e3 * float(np.median(gen_t)),
-                "filter_rank_ms": 1e3 * float(np.median(fil_t)),
-                "total_ms": 1e3 * float(np.median(tot)),
-                "total_max_ms": 1e3 * float(np.max(tot)),
-            }
-        )
-    return rows
 
 
 def bench_verifier(
@@ -180,162 +124,16 @@ def bench_agreement(n_candidates: int = 60, seed: int = 0, fine_dt: float = 0.00
     }
 
 
-def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[dict]:
-    """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
-    objects found, missed and extra, median and worst position (mm) and yaw error (deg, modulo
-    the shape's symmetry), and time per image. ``toppled`` bars per table are laid on their
-    side before rendering (the pose a knocked-over bar takes)."""
-    from mog_drake.perception import pose_errors
-    from mog_drake.scenario import ClutteredScene, Scenario, camera_intrinsics, camera_pose
-    from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
-    from mog_drake.station import MakeStation, render_still
+def agreement_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
 
-    rows = []
-    for k in range(seed, seed + tables):
-        scene = cluttered_scene(np.random.default_rng(k))
-        laid = 0
-        for i, o in enumerate(scene.objects):
-            if laid >= toppled or o.shape not in ("thin_bar", "thick_bar"):
-                continue
-            objs = list(scene.objects)
-            objs[i] = SceneObject(f"{o.shape}:on_side", o.x, o.y, o.theta)
-            try:  # a toppled bar's wider footprint must not overlap a neighbour
-                scene = Scene(objs, default_library(), table=scene.table).validate()
-                laid += 1
-            except MogError:
-                pass
-        sc = Scenario(scene=ClutteredScene(seed=k))
-        d, h = MakeStation(sc, scene)
-        rgb, depth = render_still(sc, d)
-        t = time.perf_counter()
-        seen = sc.perceiver().perceive(rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
-        dt = time.perf_counter() - t
-        errs = pose_errors(seen, h.scene)
-        found = [e for e in errs if e["object"] is not None and e["position"] is not None]
-        pos = 1e3 * np.array([e["position"] for e in found])
-        yaw = np.degrees([e["yaw"] for e in found])
-        rows.append(
-            {
-                "table_seed": k,
-                "objects": len(h.scene),
-                "toppled": laid,
-                "found": len(found),
-                "missed": sum(e["object"] is not None and e["position"] is None for e in errs),
-                "extra": sum(bool(e.get("extra")) for e in errs),
-                "unrecognised": seen.meta["unrecognised_blobs"],
-                "pos_median_mm": float(np.median(pos)) if len(pos) else float("nan"),
-                "pos_max_mm": float(pos.max()) if len(pos) else float("nan"),
-                "yaw_median_deg": float(np.median(yaw)) if len(yaw) else float("nan"),
-                "yaw_max_deg": float(yaw.max()) if len(yaw) else float("nan"),
-                "time_s": dt,
-            }
-        )
-    return rows
-
-
-def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
-    """CPU seconds per simulated second of the simulated station (arm still at its observe
-    pose, jaws open) with a whole isrr33 table in three states: every object on the table;
-    every object piled in the bin; and the pile retired (`BinRetirement`)."""
-    from pydrake.math import RigidTransform
-    from pydrake.multibody.math import SpatialVelocity
-    from pydrake.systems.analysis import Simulator
-
-    from mog_drake.scenario import ClutteredScene, Scenario
-    from mog_drake.station import MakeStation, hold_still
-    from mog_drake.station.scoring import BinRetirement
-
-    sc = Scenario(scene=ClutteredScene(seed=seed))
-    d, h = MakeStation(sc)
-    sim = Simulator(d)
-    ctx = sim.get_mutable_context()
-    hold_still(sc, d, ctx)
-    pc = h.plant.GetMyMutableContextFromRoot(ctx)
-    sim.Initialize()
-    sim.AdvanceTo(0.3)
-
-    def cost(**extra) -> dict:
-        t0, s0 = time.process_time(), ctx.get_time()
-        while ctx.get_time() < s0 + sim_seconds - 1e-9:
-            sim.AdvanceTo(min(ctx.get_time() + 0.25, s0 + sim_seconds))
-            if retire is not None:
-                retire.update(pc)
-        return {
-            **extra,
-            "objects": len(h.bodies),
-            "cpu_s_per_sim_s": (time.process_time() - t0) / sim_seconds,
-        }
-
-    retire = None
-    rows = [cost(state="on the table")]
-    rng = np.random.default_rng(seed)
-    cx, cy = sc.bin.center
-    for k, body in enumerate(h.bodies.values()):  # dropped in, one above the other
-        xy = [cx + rng.uniform(-0.08, 0.08), cy + rng.uniform(-0.05, 0.05)]
-        h.plant.SetFreeBodyPose(pc, body, RigidTransform([*xy, 0.02 + 0.035 * k]))
-        h.plant.SetFreeBodySpatialVelocity(pc, body, SpatialVelocity.Zero())
-    sim.AdvanceTo(ctx.get_time() + 3.0)  # the pile settles
-    rows.append(cost(state="piled in the bin"))
-    retire = BinRetirement(h.plant, h.bodies, sc)
-    retire.update(pc)
-    rows.append(cost(state="piled, then retired"))
-    return rows
-
-
-def bench_replanning(tables: int = 1, seed: int = 0, progress=None) -> list[dict]:
-    """Planning time of one table's decisions, replayed without the robot: on each seeded
-    isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
-    physics check lifted, plan again until the table is empty. "before": every group planned
-    afresh before each decision and every partial lift reported; "after": the picking
-    defaults (failed groups remembered, partial lifts of two or more)."""
-    from dataclasses import replace
-
-    from mog_drake.planning.picking import next_pick
-    from mog_drake.scenario import ClutteredScene, Scenario
-    from mog_drake.scenes import Scene
-    from mog_drake.sim.verifier import DrakeVerifier
-    from mog_drake.station import scene_from_spec
-    from mog_drake.systems.pick import make_planner
-
-    rows, done = [], 0
-    for k in range(tables):
-        table_seed = seed * 1_000_000 + k
-        for setting in ("before", "after"):
-            planner = make_planner(Scenario())
-            if setting == "before":
-                planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
-            scene = scene_from_spec(ClutteredScene(seed=table_seed))
-            rng, failures = np.random.default_rng(table_seed), () if setting == "after" else None
-            n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
-            while len(scene) and decisions < 3 * n0:
-                d = next_pick(scene, planner, rng=rng, failures=failures)
-                failures = d.failures if failures is not None else None
-                decisions += 1
-                checks += d.physics_checks
-                remembered += d.remembered
-                planning += d.planning_time
-                if d.status != "grasp":
-                    break
-                gone = set(d.expected) or set(d.group)
-                scene = Scene(
-                    [o for i, o in enumerate(scene.objects) if i not in gone], scene.library, scene.table
-                )
-            rows.append(
-                {
-                    "table_seed": table_seed,
-                    "setting": setting,
-                    "decisions": decisions,
-                    "objects_left": len(scene),
-                    "physics_checks": checks,
-                    "groups_remembered": remembered,
-                    "planning_s": round(planning, 1),
-                    "per_decision_s": round(planning / max(decisions, 1), 2),
-                }
-            )
-            done += 1
-            if progress:
-                progress(done, 2 * tables)
-    return rows
+    summary = {k: v for k, v in doc.items() if k != "disagreements"}
+    return format_table([summary]) + "".join(
+        f"\n  disagreement: class {d['class']} scene seed {d['scene_seed']} grasp "
+        f"{[round(x, 5) for x in d['grasp']]}: 5 ms {d['coarse']['success']} ({d['coarse']['error'] or 'ok'}), "
+        f"fine {d['fine']['success']} ({d['fine']['error'] or 'ok'})"
+        for d in doc["disagreements"]
+    )
 
 
 def hold_verifiers(window: float):
@@ -458,3 +256,19 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
         "wall_settled_s": wall[1],
         "differing": differ,
     }
+
+
+def hold_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
+
+    text = format_table(doc["rows"]) + (
+        f"\nall checks: {doc['wall_s']:.1f} s with the full hold, {doc['wall_settled_s']:.1f} s ending it "
+        f"once settled ({doc['window_s']:g} s under {doc['settle_speed_m_s'] * 1e3:g} mm/s); "
+        f"{len(doc['differing'])} verdicts differ"
+    )
+    return text + "".join(
+        f"\n  differs: {d['kind']} group {d['group']} grasp {[round(x, 5) for x in d['grasp']]}: "
+        f"full hold {d['full_hold']['success']} lifted {d['full_hold']['lifted']}, "
+        f"settled {d['settled']['success']} lifted {d['settled']['lifted']}"
+        for d in doc["differing"]
+    )

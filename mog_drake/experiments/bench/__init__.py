@@ -1,0 +1,67 @@
+"""Benchmarks that print tables. Speed is shown here, never asserted in tests.
+
+`run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
+
+* geometry: the conditions and the candidate filter (`bench.geometry`)
+* verifier, agreement, hold: the physics check (`bench.physics`)
+* perception, station, replanning: rendered tables, the station's step, replanning (`bench.station`)
+"""
+
+from __future__ import annotations
+
+from mog_drake.tables import format_table
+
+BENCHES = ("geometry", "verifier", "agreement", "perception", "station", "replanning", "hold")
+
+
+def run(
+    what: str,
+    scenes: int = 20,
+    seed: int = 0,
+    toppled: int = 0,
+    candidates: int = 60,
+    window: float = 0.5,
+    progress: bool = True,
+) -> tuple[dict, str]:
+    """Runs one benchmark; returns its document and its table as text."""
+    from mog_drake.progress import Progress
+
+    if what == "geometry":
+        from mog_drake.experiments.bench.geometry import bench_geometry
+
+        rows = bench_geometry(scenes, seed)
+    elif what == "verifier":
+        from mog_drake.experiments.bench.physics import bench_verifier
+
+        rows = bench_verifier(scenes, seed)
+    elif what == "perception":
+        from mog_drake.experiments.bench.station import bench_perception
+
+        rows = bench_perception(scenes, seed, toppled)
+    elif what == "station":
+        from mog_drake.experiments.bench.station import bench_station
+
+        rows = bench_station(seed)
+    elif what == "replanning":
+        from mog_drake.experiments.bench.station import bench_replanning
+
+        rows = bench_replanning(scenes, seed, Progress(2 * scenes, "replanning", enabled=progress))
+    elif what == "agreement":
+        from mog_drake.experiments.bench.physics import agreement_text, bench_agreement
+
+        bar = Progress(candidates, "agreement", enabled=progress)
+        doc = bench_agreement(candidates, seed, progress=bar)
+        bar.close()
+        return doc, agreement_text(doc)
+    elif what == "hold":
+        from mog_drake.experiments.bench.physics import bench_hold, hold_text
+
+        bar = Progress(scenes, "hold", enabled=progress)
+        doc = bench_hold(scenes, seed, window, progress=bar)
+        bar.close()
+        return doc, hold_text(doc)
+    else:
+        from mog_drake.errors import MogError
+
+        raise MogError(f"unknown benchmark {what!r} (known: {', '.join(BENCHES)})")
+    return {what: rows}, format_table(rows)
