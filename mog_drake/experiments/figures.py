@@ -78,9 +78,9 @@ def _save(fig, path) -> Path:
     return path
 
 
-def picking_figure(summary: dict, path: str | Path) -> Path:
-    from mog_drake.experiments.picking_eval import PAPER_TABLE1
-
+def picking_figure(summary: dict, path: str | Path, paper: dict | None = None) -> Path:
+    """``paper``: {mode: {success_rate, picked_pct, pph}}, the paper's bars beside ours."""
+    paper = paper or {}
     rows = summary["rows"]
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.5))
     for ax, key, label in zip(
@@ -99,7 +99,7 @@ def picking_figure(summary: dict, path: str | Path) -> Path:
         )
         ax.bar(
             x + 0.2,
-            [PAPER_TABLE1.get(r["mode"], {}).get(key, np.nan) for r in rows],
+            [paper.get(r["mode"], {}).get(key, np.nan) for r in rows],
             0.4,
             color="0.6",
             label="paper (real UR5)",

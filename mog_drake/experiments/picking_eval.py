@@ -292,7 +292,7 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
     from mog_drake.tables import format_table
 
     out = Path(out)
-    png = figures.picking_figure(summary, out / "picking.png")
+    png = figures.picking_figure(summary, out / "picking.png", PAPER_TABLE1)
     text = format_table(summary["rows"], COLUMNS)
     text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
     text += "\n" + losses_text(summary)

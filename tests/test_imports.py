@@ -1,0 +1,68 @@
+"""The package's import structure: Drake stays out of the pure layers, and no module imports
+itself back through others (not even inside a function)."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "mog_drake"
+
+
+def test_geometry_planning_scenes_and_perception_never_load_pydrake():
+    code = (
+        "import sys\n"
+        "import mog_drake.geometry, mog_drake.scenes, mog_drake.perception\n"
+        "import mog_drake.planning.config, mog_drake.planning.picking, mog_drake.planning.planner\n"
+        "import mog_drake.planning.protocol\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'pydrake'))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _imports(path: Path, modules: set[str]) -> set[str]:
+    """Every project module ``path`` imports, at the top or inside a function."""
+    me = _module_name(path)
+    package = me if path.name == "__init__.py" else me.rsplit(".", 1)[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+            # "from pkg import sub" imports the submodule pkg.sub when there is one.
+            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base for a in node.names]
+        else:
+            continue
+        out.update(n for n in names if n in modules and n != me)
+    return out
+
+
+def test_no_import_cycle_anywhere_in_the_package():
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {m: _imports(p, set(files)) for m, p in files.items()}
+    cycles, state = [], {}
+
+    def visit(m, stack):
+        state[m] = "open"
+        for n in sorted(graph[m]):
+            if state.get(n) == "open":
+                cycles.append(stack[stack.index(n) :] + [n])
+            elif n not in state:
+                visit(n, [*stack, n])
+        state[m] = "done"
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [m])
+    assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
