@@ -13,8 +13,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install -q -e ".[test,dev]"
 	touch $(STAMP)
 
+# A 12-object table (seed 6) on which Alg. 1 starts with four grasps of two objects each.
 demo: $(STAMP)
-	$(BIN)/mog-drake pick --objects 10 --seed 0 --record out/pick.html
+	$(BIN)/mog-drake pick --objects 12 --seed 6 --record out/pick.html
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mog_drake.errors import MogError
+from mog_drake.planning.config import MODES
 from mog_drake.tables import format_table
 
 
@@ -279,7 +280,7 @@ def _cmd_eval(args) -> int:
         from mog_drake.experiments import picking_eval
 
         modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-        if not modes or any(m not in ("mog", "sog") for m in modes):
+        if not modes or any(m not in MODES for m in modes):
             raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
         scenario = ""
         if args.scenario:
@@ -352,8 +353,6 @@ def _scenario(args):
             sc.scene = replace(sc.scene, seed=args.seed)
         sc.planner = replace(sc.planner, seed=args.seed)
     if getattr(args, "mode", None):
-        if args.mode not in ("mog", "sog"):
-            raise MogError(f"--mode must be mog or sog, got {args.mode!r}")
         sc.planner = replace(sc.planner, mode=args.mode)
     if getattr(args, "objects", None):
         if not hasattr(sc.scene, "n_objects"):
@@ -377,7 +376,10 @@ def cmd_pick(args) -> int:
     if args.meshcat or args.record:
         from pydrake.geometry import StartMeshcat
 
+        from mog_drake.station.sim import frame_work_cell
+
         meshcat = StartMeshcat()
+        frame_work_cell(meshcat, sc)
         if args.meshcat:
             print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
 
@@ -630,9 +632,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp = sub.add_parser(name, help=helptext)
         sp.add_argument("--scenario", help="scenario YAML (default: the built-in one)")
         sp.add_argument("--seed", type=int, help="scene and planner seed")
-        sp.add_argument(
-            "--mode", choices=["mog", "sog"], help="multi-object (Alg. 1) or single-object picking"
-        )
+        sp.add_argument("--mode", choices=MODES, help="multi-object (Alg. 1) or single-object picking")
         sp.add_argument("--objects", type=int, help="objects on a generated cluttered table")
         sp.add_argument("--time-limit", type=float, help="simulated robot seconds")
         sp.add_argument("--json", action="store_true")

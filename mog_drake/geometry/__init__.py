@@ -29,7 +29,6 @@ from mog_drake.geometry.groups import (
 )
 from mog_drake.geometry.polygon import (
     final_diameters,
-    min_final_diameter,
     transform,
     validate_convex_polygon,
 )
@@ -51,7 +50,6 @@ __all__ = [
     "objects_in_reach",
     "hull_positions",
     "jaw_collision_free",
-    "min_final_diameter",
     "rank_grasp_cands",
     "rank_obj_groups",
     "ranked_groups",

@@ -157,11 +157,6 @@ def final_diameters(vertices: np.ndarray, tol: float = 1e-7, merge_tol: float = 
     return np.array(merged)
 
 
-def min_final_diameter(vertices: np.ndarray) -> float:
-    """d_fmin = min_j d_f,j (paper Eq. 5)."""
-    return float(final_diameters(vertices).min())
-
-
 def transform(vertices: np.ndarray, x: float, y: float, theta: float) -> np.ndarray:
     """Body-frame vertices placed at pose (x, y, theta) in the table frame."""
     c, s = np.cos(theta), np.sin(theta)

@@ -77,11 +77,13 @@ class Perceiver:
         self,
         library: ShapeLibrary | None = None,
         config: PerceptionConfig | None = None,
-        table=(-0.30, 0.30, -0.30, 0.30),
+        *,
+        table,
         ignore=(),
         reach=None,
     ):
-        """``ignore``: rectangles (xmin, xmax, ymin, ymax) of the table where no object is
+        """``table``: the perceived table (xmin, xmax, ymin, ymax; the scenario's ``table``).
+        ``ignore``: rectangles (xmin, xmax, ymin, ymax) of the table where no object is
         looked for: fixtures standing on it, such as the bin, whose walls the camera sees.
         ``reach``: a disc (x, y, radius), the arm's reach; an object (or unrecognised blob)
         whose centre lies outside it is not reported (counted in ``meta["beyond_reach"]``):

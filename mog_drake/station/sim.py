@@ -243,3 +243,17 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     diagram = builder.Build()
     diagram.set_name("station")
     return diagram, StationHandles(plant, scene_graph, robot, bodies, scene)
+
+
+def frame_work_cell(meshcat, scenario: Scenario) -> None:
+    """Points Meshcat's camera at the work cell from the front right and above: the table, the
+    arm's base and the bin fill the view (the default view starts far out, where the whole cell
+    is a few dozen pixels wide)."""
+    x0, x1, y0, y1 = scenario.table
+    bx, by, _ = scenario.robot.base
+    cx, cy = scenario.bin.center
+    xs, ys = [x0, x1, bx, cx], [y0, y1, by, cy]
+    target = np.array([(min(xs) + max(xs)) / 2, (min(ys) + max(ys)) / 2, 0.1])
+    size = max(max(xs) - min(xs), max(ys) - min(ys))
+    meshcat.SetCameraPose(target + size * np.array([0.8, -0.85, 0.7]), target)
+    meshcat.SetProperty("/Axes", "visible", False)
