@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -49,9 +50,25 @@ def resolve_group(scene, group_arg, gripper=None) -> tuple[tuple[int, ...], str]
     return scene.default_group((gripper or GripperGeometry()).w_g)
 
 
+def plain(obj):
+    """``obj`` as strict JSON values: NaN and infinities become null (JSON has no NaN),
+    numpy scalars and arrays Python numbers and lists."""
+    if isinstance(obj, dict):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
 def _emit(args, doc: dict, text: str) -> None:
     if getattr(args, "json", False):
-        print(json.dumps(doc, indent=2))
+        print(json.dumps(plain(doc), indent=2, allow_nan=False))
     else:
         print(text)
 
@@ -499,9 +516,7 @@ def cmd_demo(args) -> int:
 
 # --- parser -------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="mog-drake", description="Multi-object push-grasping in the plane, on Drake."
-    )
+    p = _Parser(prog="mog-drake", description="Multi-object push-grasping in the plane, on Drake.")
     sub = p.add_subparsers(dest="command", required=True)
 
     def common(sp, scene=True):
@@ -685,9 +700,27 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its errors on one line (`mog-drake: error: ...`, exit 2) and numbers in
+    exponent form (-1e-3) read as numbers, not options. Subparsers are of this class too."""
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+    def error(self, message):
+        raise _UsageError(" ".join(str(message).split()))
+
+
+IMAGE_SUFFIXES = (".png", ".svg", ".pdf", ".jpg", ".jpeg")
+
+
+def check_args(args) -> None:
+    """Refuses bad numbers and output paths before anything runs."""
     for name in (
         "positions",
         "orientations",
@@ -703,14 +736,44 @@ def main(argv: list[str] | None = None) -> int:
     ):
         v = getattr(args, name, None)
         if v is not None and not isinstance(v, bool) and v < 1:
-            print(
-                f"mog-drake: error: --{name.replace('_', '-')} must be at least 1, got {v}", file=sys.stderr
+            raise MogError(f"--{name.replace('_', '-')} must be at least 1, got {v}")
+    seed = getattr(args, "seed", None)
+    if seed is not None and not 0 <= seed < 2**63:
+        raise MogError(f"--seed must be a whole number >= 0, got {seed}")
+    for name in ("time_limit", "timeout", "move_timeout", "window", "force"):
+        v = getattr(args, name, None)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise MogError(f"--{name.replace('_', '-')} must be a positive number, got {v}")
+    for name, suffixes in (("output", IMAGE_SUFFIXES), ("record", (".html",))):
+        v = getattr(args, name, None)
+        if not v:
+            continue
+        path = Path(v)
+        if path.is_dir():
+            raise MogError(f"--{name} {v} is a directory: give a file name")
+        if name == "output" and args.command == "scene" and args.scene_command == "generate":
+            continue  # a scene YAML, any name
+        if name == "output" and args.command == "diagram":
+            suffixes = (*suffixes, ".dot")
+        if path.suffix.lower() not in suffixes:
+            raise MogError(
+                f"--{name} {v}: unknown file type {path.suffix or '(none)'} (use {', '.join(suffixes)})"
             )
-            return 2
+    out = getattr(args, "out", None)
+    if out and Path(out).exists() and not Path(out).is_dir():
+        raise MogError(f"--out {out} is a file: give a folder")
+
+
+def main(argv: list[str] | None = None) -> int:
     try:
+        args = build_parser().parse_args(argv)
+        check_args(args)
         return int(args.func(args) or 0)
-    except MogError as e:  # HardwareFault included: exit 3
+    except _UsageError as e:
         print(f"mog-drake: error: {e}", file=sys.stderr)
+        return 2
+    except MogError as e:  # HardwareFault included: exit 3
+        print(f"mog-drake: error: {' '.join(str(e).split())}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt:
         print("mog-drake: interrupted", file=sys.stderr)

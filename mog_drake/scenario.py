@@ -12,6 +12,7 @@ lists every setting.
 World frame = table frame: origin at the centre of the table top, z up.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +29,7 @@ from pydrake.visualization import VisualizationConfig
 from mog_drake.errors import MogError
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
+from mog_drake.scenes.library import read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.systems.controller import ControllerConfig
 from mog_drake.systems.motion import MotionConfig
@@ -255,26 +257,19 @@ def load_scenario(path: str | None = None) -> Scenario:
     """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""
     if not path:
         return Scenario()
-    return _checked(
-        str(path), lambda: yaml_load_typed(schema=Scenario, filename=str(path), defaults=Scenario())
-    )
+    return scenario_from_text(read_text(path, "scenario file"), str(path))
 
 
 def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
     """A scenario from YAML text (a file's contents), checked like ``load_scenario``."""
-    return _checked(where, lambda: yaml_load_typed(schema=Scenario, data=text, defaults=Scenario()))
-
-
-def scenario_yaml(scenario: Scenario | None = None) -> str:
-    """The scenario as YAML (every setting, variants tagged)."""
-    return yaml_dump_typed(scenario if scenario is not None else Scenario())
-
-
-def _checked(where: str, load) -> Scenario:
     try:
-        sc = load()
-    except RuntimeError as e:
-        raise MogError(f"{where}: {str(e).splitlines()[0]}") from None
+        sc = yaml_load_typed(schema=Scenario, data=text, defaults=Scenario())
+    except Exception as e:  # Drake's loader raises RuntimeError, TypeError, ValueError, yaml's own
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+        key = _failing_key(text)
+        raise MogError(
+            f"{where}: {key + ': ' if key else ''}{lines[0] if lines else type(e).__name__}"
+        ) from None
     try:
         check_scenario(sc)
     except MogError as e:
@@ -282,13 +277,123 @@ def _checked(where: str, load) -> Scenario:
     return sc
 
 
+def _failing_key(text: str) -> str:
+    """The dotted key whose value the typed loader refuses (its own errors do not name it):
+    each mapping entry is loaded alone, tags kept, descending into the one that fails."""
+    import yaml
+
+    def loads(node) -> bool:
+        try:
+            yaml_load_typed(schema=Scenario, data=yaml.serialize(node), defaults=Scenario())
+            return True
+        except Exception:
+            return False
+
+    try:
+        root = yaml.compose(text)
+    except yaml.YAMLError:
+        return ""
+    path, wrap, node = [], (lambda n: n), root
+    while isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            alone = yaml.MappingNode(node.tag, [(k, v)])
+            if not loads(wrap(alone)):
+                path.append(str(k.value))
+                wrap = (lambda w, t, kk: lambda n: w(yaml.MappingNode(t, [(kk, n)])))(wrap, node.tag, k)
+                node = v
+                break
+        else:
+            break
+    return ".".join(path)
+
+
+def scenario_yaml(scenario: Scenario | None = None) -> str:
+    """The scenario as YAML (every setting, variants tagged)."""
+    return yaml_dump_typed(scenario if scenario is not None else Scenario())
+
+
+def _finite_leaves(obj, path: str = ""):
+    """(key path, value) of every number in a config tree (dataclasses, Drake structs, lists)."""
+    if isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        return
+    if isinstance(obj, (int, float)):
+        yield path, obj
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            yield from _finite_leaves(v, f"{path}[{i}]")
+    elif isinstance(obj, np.ndarray):
+        for i, v in enumerate(obj.ravel()):
+            yield f"{path}[{i}]", float(v)
+    elif dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            yield from _finite_leaves(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name)
+    elif hasattr(type(obj), "__fields__"):  # a Drake config struct
+        for f in type(obj).__fields__:
+            yield from _finite_leaves(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name)
+
+
+def _in(sc_value, key: str, lo: float, hi: float, lo_open: bool = True) -> None:
+    ok = (lo < sc_value if lo_open else lo <= sc_value) and sc_value <= hi
+    if not ok:
+        left = "(" if lo_open else "["
+        raise MogError(f"{key} must be in {left}{lo:g}, {hi:g}], got {sc_value!r}")
+
+
+def _box(values, key: str, n: int) -> None:
+    if len(values) != n or any(values[i] >= values[i + 1] for i in range(0, n, 2)):
+        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {list(values)}")
+
+
 def check_scenario(sc: Scenario) -> None:
-    """Refuses a setting that would only fail once the robot is running."""
+    """Refuses, at load, a setting that would fail only once the robot runs, or crash in the
+    physics: every number finite, and each in the range it means something in (the key named)."""
+    for key, v in _finite_leaves(sc):
+        if not math.isfinite(v):
+            raise MogError(f"{key} must be a finite number, got {v!r}")
     sc.planner.check()
-    if not (
-        isinstance(sc.robot.reach, (int, float)) and math.isfinite(sc.robot.reach) and sc.robot.reach > 0
-    ):
-        raise MogError(f"robot.reach must be > 0 m, got {sc.robot.reach}")
+    _in(sc.time_limit, "time_limit", 0, 1e6)
+    r = sc.robot
+    if len(r.base) != 3 or len(r.home) != 6:
+        raise MogError("robot.base must be [x, y, yaw] and robot.home six joint angles")
+    _in(r.reach, "robot.reach", 0, 2.0)
+    _in(r.max_joint_speed, "robot.max_joint_speed", 0, 2 * math.pi)
+    _in(r.max_joint_acceleration, "robot.max_joint_acceleration", 0, 40.0)
+    _in(r.kp, "robot.kp", 0, 1e7)
+    _in(r.kd, "robot.kd", 0, 1e6, lo_open=False)
+    _box(sc.table, "table", 4)
+    if any(abs(v) > 10 for v in sc.table):
+        raise MogError(f"table must lie within 10 m of the origin, got {list(sc.table)}")
+    b = sc.bin
+    if len(b.center) != 2 or len(b.inner) != 2 or min(b.inner) <= 0:
+        raise MogError("bin.center must be [x, y] and bin.inner two positive sizes")
+    _in(b.depth, "bin.depth", 0, 1.0)
+    _in(b.wall, "bin.wall", 0, 0.2)
+    c = sc.camera
+    for key in ("width", "height"):
+        _in(getattr(c, key), f"camera.{key}", 0, 8192)
+    if not 0 < c.z_near < c.z_far or not 0 < c.clipping_near < c.clipping_far:
+        raise MogError("camera: 0 < z_near < z_far and 0 < clipping_near < clipping_far")
+    g = sc.gripper
+    _in(g.force_limit, "gripper.force_limit (N)", 0, 1000)
+    _in(g.close_speed, "gripper.close_speed (m/s)", 0, 1.0)
+    _in(g.finger_height, "gripper.finger_height (m)", 0, 0.2)
+    for key in ("contact", "planner_contact"):
+        k = getattr(sc, key)
+        _in(k.plant.time_step, f"{key}.plant.time_step (s)", 0, 0.1)
+        _in(k.hydroelastic_modulus, f"{key}.hydroelastic_modulus (Pa)", 0, 1e12)
+        for mu in ("mu_object", "mu_finger", "mu_table"):
+            _in(getattr(k, mu), f"{key}.{mu}", 0, 10, lo_open=False)
+    ctl = sc.controller
+    _in(ctl.period, "controller.period (s)", 0, 1.0)
+    for key in ("close_margin", "open_time", "settle_time"):
+        _in(getattr(ctl, key), f"controller.{key} (s)", 0, 60, lo_open=False)
+    _in(sc.motion.carry_scale, "motion.carry_scale", 0, 1)
+    hw = sc.hardware
+    _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
+    _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)
+    _box(hw.workspace, "hardware.workspace", 6)
+    if hw.link_box:
+        _box(hw.link_box, "hardware.link_box", 6)
 
 
 HEADER = """\

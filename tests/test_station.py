@@ -458,11 +458,12 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     assert seen[0].planner.group_radius == 0.045 and record["summary"]["objects"] == 5
     assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
 
-    with summary_only():
-        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
-        assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
-        with pytest.raises(MogError, match="holds a sweep with scenario="):
-            picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
+    assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
+    with pytest.raises(MogError, match="holds a sweep with scenario="):
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    with summary_only(), pytest.raises(MogError, match="holds a sweep with scenario="):
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
     bad = tmp_path / "bad.yaml"
     bad.write_text("planner:\n  group_radius: -1\n")
     assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
@@ -600,7 +601,7 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     with pytest.raises(MogError, match="planner.method .*'fastest'"):
         load_scenario(str(f))
     f.write_text("robot:\n  reach: 0.0\n")
-    with pytest.raises(MogError, match="robot.reach must be > 0 m, got 0.0"):
+    with pytest.raises(MogError, match=r"robot.reach must be in \(0, 2\], got 0.0"):
         load_scenario(str(f))
     f.write_text("planner:\n  hold_s: 0\n")
     with pytest.raises(MogError, match="hold_s must be in"):

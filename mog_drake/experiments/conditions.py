@@ -271,10 +271,10 @@ def report(summary: dict, out) -> str:
     from pathlib import Path
 
     from mog_drake.experiments import figures
+    from mog_drake.experiments.sweep import reading_only
     from mog_drake.tables import format_table
 
     out = Path(out)
-    png = figures.conditions_figure(summary, out / "conditions.png")
     text = format_table(summary["rows"], COLUMNS)
     fns = summary["false_negatives"]
     text += f"\n\nfalse negatives: {len(fns)}" + "".join(
@@ -283,5 +283,8 @@ def report(summary: dict, out) -> str:
     )
     if len(fns) > 20:
         text += f"\n  ... {len(fns) - 20} more in {out / 'summary.json'}"
+    if reading_only():  # --summary-only reads, never writes
+        return text + f"\n\nresults: {out / 'results.jsonl'} (summary only: nothing written)"
+    png = figures.conditions_figure(summary, out / "conditions.png")
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return text + f"\n\nresults: {out / 'results.jsonl'}  summary: {out / 'summary.json'}  figure: {png}"

@@ -139,7 +139,7 @@ def summarize(results: list[dict], modes) -> dict:
         row["all_attempts"] = drops["attempts"]
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
-    ratio = pph["mog"] / pph["sog"] if pph.get("sog") else float("nan")
+    ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
     return {"rows": rows, "pph_ratio_mog_over_sog": ratio}
 
 
@@ -288,13 +288,13 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
 
     from mog_drake.errors import MogError
     from mog_drake.experiments import figures
-    from mog_drake.experiments.sweep import load_results
+    from mog_drake.experiments.sweep import load_results, reading_only
     from mog_drake.tables import format_table
 
     out = Path(out)
-    png = figures.picking_figure(summary, out / "picking.png", PAPER_TABLE1)
     text = format_table(summary["rows"], COLUMNS)
-    text += f"\nPPH multi / single: {summary['pph_ratio_mog_over_sog']:.2f}"
+    ratio = summary["pph_ratio_mog_over_sog"]
+    text += f"\nPPH multi / single: {ratio:.2f}" if ratio == ratio else "\nPPH multi / single: n/a (one mode)"
     text += "\n" + losses_text(summary)
     if compare_dir:
         other = Path(compare_dir) / "results.jsonl"
@@ -306,5 +306,8 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
             f"\n\npaired with {compare_dir} (A) on {paired['tables']} common runs; B = {out}\n"
             + compare_text(paired)
         )
+    if reading_only():  # --summary-only reads, never writes
+        return text + f"\n\nresults: {out / 'results.jsonl'} (summary only: nothing written)"
+    png = figures.picking_figure(summary, out / "picking.png", PAPER_TABLE1)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return text + f"\n\nresults: {out / 'results.jsonl'}  figure: {png}"

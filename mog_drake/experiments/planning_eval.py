@@ -167,9 +167,15 @@ def report(summary: dict, out) -> str:
     from pathlib import Path
 
     from mog_drake.experiments import figures
+    from mog_drake.experiments.sweep import reading_only
     from mog_drake.tables import format_table
 
     out = Path(out)
+    if reading_only():  # --summary-only reads, never writes
+        return (
+            format_table(summary["rows"], COLUMNS)
+            + f"\n\nresults: {out / 'results.jsonl'} (summary only: nothing written)"
+        )
     png = figures.planner_figure(summary, out / "planner.png")
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return (

@@ -1,7 +1,10 @@
 """Resumable, parallel sweeps: one JSON line per finished task, appended as it completes.
 
 An interrupted sweep (Ctrl-C, a killed machine) resumes where it stopped: finished tasks are
-read back from ``results.jsonl`` and skipped; a torn last line is dropped. ``jobs`` runs tasks
+read back from ``results.jsonl`` and skipped; a torn last line is dropped, and a corrupt line
+anywhere is skipped with a one-line warning (its task runs again). One sweep at a time writes
+to a folder: a lock on ``--out`` refuses a second one, naming the process that holds it.
+Workers exit when their parent dies, however it dies. ``jobs`` runs tasks
 in parallel processes on this machine; ``ray_address`` sends them to an existing Ray cluster.
 
 A task that raises does not stop the others: its error and traceback are appended to
@@ -15,6 +18,7 @@ import contextlib
 import functools
 import json
 import os
+import sys
 import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -24,30 +28,47 @@ from mog_drake.progress import Progress
 
 
 def load_results(path: Path, repair: bool = True) -> dict[str, dict]:
-    """Finished results by key. A torn (unterminated) last line is left out; with ``repair``
-    it is also cut from the file, which only the sweep about to append to it may do: read
-    while another process is writing, that line is still being written."""
+    """Finished results by key. A torn (unterminated) last line is left out, and so is any
+    line that is not a JSON record with a "key" (each named in a one-line warning on stderr):
+    its task has no result, so it runs again. With ``repair`` such lines are also cut from the
+    file, which only the sweep about to append to it may do: read while another process is
+    writing, the last line is still being written."""
     path = Path(path)
     if not path.exists():
         return {}
     data = path.read_bytes()
-    if data and not data.endswith(b"\n"):
+    torn = bool(data) and not data.endswith(b"\n")
+    if torn:
         data = data[: data.rfind(b"\n") + 1]
-        if repair:
-            path.write_bytes(data)
-    out = {}
-    for line in data.decode().splitlines():
-        if line.strip():
+    out, good, bad = {}, [], []
+    for n, line in enumerate(data.split(b"\n")[:-1], start=1):
+        if not line.strip():
+            continue
+        try:
             rec = json.loads(line)
-            out[rec["key"]] = rec
+            key = rec["key"]
+        except (ValueError, TypeError, KeyError):
+            bad.append(n)
+            continue
+        out[key] = rec
+        good.append(line)
+    for n in bad:
+        print(
+            f"mog-drake: warning: {path} line {n} is not a result record; skipped (its task runs again)",
+            file=sys.stderr,
+        )
+    if repair and (torn or bad):
+        tmp = path.with_suffix(".jsonl.tmp")
+        tmp.write_bytes(b"".join(line + b"\n" for line in good))
+        os.replace(tmp, path)
     return out
 
 
 def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes_per_class",)) -> None:
     """Records the sweep's parameters; refuses to resume a folder made with different ones
-    (except the ``growable`` ones, which may change: a larger sweep extends a smaller one)."""
+    (except the ``growable`` ones, which may change: a larger sweep extends a smaller one).
+    A summary only reads: it records nothing."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "sweep.json"
     if path.exists():
         old = json.loads(path.read_text())
@@ -58,6 +79,9 @@ def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes
                 f"{out_dir} holds a sweep with {k}={_short(old.get(k))}, not {_short(params.get(k))}: "
                 "use another --out folder"
             )
+    if _SUMMARY_ONLY:
+        return
+    out_dir.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(params, indent=2))
 
 
@@ -67,6 +91,37 @@ def _short(value, n: int = 60) -> str:
 
 
 _SUMMARY_ONLY = False
+
+
+def reading_only() -> bool:
+    """True inside `summary_only`: nothing may be written."""
+    return _SUMMARY_ONLY
+
+
+@contextlib.contextmanager
+def folder_lock(out_dir: Path):
+    """Holds an exclusive lock on ``out_dir`` (its ``.lock`` file, which names the holder's
+    process id) for the block; a second sweep on the same folder is refused with one line."""
+    import fcntl
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    f = open(out_dir / ".lock", "a+")  # noqa: SIM115
+    try:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.seek(0)
+            holder = f.read().strip() or "unknown"
+            raise MogError(
+                f"{out_dir} is in use by another sweep (process {holder}); wait for it to end or use another --out"
+            ) from None
+        f.seek(0)
+        f.truncate()
+        f.write(str(os.getpid()))
+        f.flush()
+        yield
+    finally:
+        f.close()  # releases the lock
 
 
 @contextlib.contextmanager
@@ -94,28 +149,28 @@ def run_sweep(
     results in task order. ``worker`` must be a module-level function (it is pickled).
     Raises ``MogError`` after the last task if any task raised (see the module's docstring)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / "results.jsonl"
-    # A summary of a sweep still under way only reads: it must not touch the file.
-    done = load_results(path, repair=not _SUMMARY_ONLY)
-    if _SUMMARY_ONLY:
+    if _SUMMARY_ONLY:  # a summary of a sweep still under way only reads: it must not touch the file
+        done = load_results(path, repair=False)
         return [done[t["key"]] for t in tasks if t["key"] in done]
-    todo = [t for t in tasks if t["key"] not in done]
-    bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
-    bar.update(len(tasks) - len(todo))
-    failed: list[dict] = []
-    try:
-        with open(path, "a") as f:
-            for rec in _execute(todo, worker, jobs, ray_address):
-                if _FAILED in rec:
-                    failed.append(rec)
-                    _append_line(out_dir / "failures.jsonl", rec)
-                else:
-                    _write_line(f, rec)
-                    done[rec["key"]] = rec
-                bar.step()
-    finally:
-        bar.close()
+    with folder_lock(out_dir):
+        done = load_results(path)
+        todo = [t for t in tasks if t["key"] not in done]
+        bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
+        bar.update(len(tasks) - len(todo))
+        failed: list[dict] = []
+        try:
+            with open(path, "a") as f:
+                for rec in _execute(todo, worker, jobs, ray_address):
+                    if _FAILED in rec:
+                        failed.append(rec)
+                        _append_line(out_dir / "failures.jsonl", rec)
+                    else:
+                        _write_line(f, rec)
+                        done[rec["key"]] = rec
+                    bar.step()
+        finally:
+            bar.close()
     if failed:
         first = failed[0]
         raise MogError(
@@ -165,8 +220,37 @@ def _execute(tasks: list[dict], worker, jobs: int, ray_address: str | None):
         import multiprocessing as mp
 
         # spawn: fresh interpreters, nothing of the parent's Drake state is shared.
-        with mp.get_context("spawn").Pool(jobs) as pool:
+        with mp.get_context("spawn").Pool(
+            jobs, initializer=_die_with_parent, initargs=(os.getpid(),)
+        ) as pool:
             yield from pool.imap_unordered(functools.partial(_guarded, worker), tasks, chunksize=1)
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a worker: exit as soon as the parent process is gone, even if it was SIGKILLed (then
+    it cannot stop its pool). Linux delivers a signal on the parent's death (PR_SET_PDEATHSIG);
+    elsewhere a watchdog thread sees the worker re-parented."""
+    import signal
+    import threading
+    import time
+
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # died before the signal was armed
+        os._exit(1)
+
+    def watch():
+        while True:
+            if os.getppid() != parent:
+                os._exit(1)
+            time.sleep(0.5)
+
+    threading.Thread(target=watch, daemon=True).start()
 
 
 def _execute_ray(tasks: list[dict], worker, address: str):

@@ -20,6 +20,10 @@ from mog_drake.geometry.polygon import (
 
 MODELS_DIR = Path(os.environ.get("MOG_DRAKE_MODELS", Path(__file__).resolve().parents[2] / "models"))
 DEFAULT_SHAPES_FILE = MODELS_DIR / "shapes.yaml"
+MAX_FILE_BYTES = 16 * 2**20  # a scene, shapes or scenario file is a few kB
+#: A shape is a tabletop object: its vertices within this distance of its origin, its height
+#: at most this (m). Larger numbers are typos, and break the physics.
+MAX_SHAPE_SIZE = 0.5
 
 
 @dataclass(frozen=True)
@@ -77,8 +81,10 @@ def make_shape(name: str, spec: dict) -> Shape:
     verts = validate_convex_polygon(spec["vertices"], name)
     # Express the body frame about the polygon's centroid-free origin as given: poses refer to
     # the body origin, which the library defines.
-    height = _positive(spec["height"], f"shape '{name}': height")
-    density = _positive(spec.get("density", 1000.0), f"shape '{name}': density")
+    if float(np.abs(verts).max()) > MAX_SHAPE_SIZE:
+        raise MogError(f"shape '{name}': its vertices must lie within {MAX_SHAPE_SIZE} m of its origin")
+    height = _positive(spec["height"], f"shape '{name}': height", MAX_SHAPE_SIZE)
+    density = _positive(spec.get("density", 1000.0), f"shape '{name}': density", 1e5)
     color = spec.get("color", [0.6, 0.6, 0.6, 1.0])
     try:
         color = tuple(float(c) for c in color)
@@ -117,22 +123,45 @@ def _box_dims(vertices: np.ndarray) -> tuple[float, float] | None:
     return float(lengths[0]), float(lengths[1])
 
 
-def _positive(v, what: str) -> float:
+def _positive(v, what: str, upper: float = math.inf) -> float:
+    if isinstance(v, bool):
+        raise MogError(f"{what} must be a number, got {v!r}")
     try:
         f = float(v)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise MogError(f"{what} must be a number, got {v!r}") from None
     if not math.isfinite(f) or f <= 0:
         raise MogError(f"{what} must be a positive finite number, got {v!r}")
+    if f > upper:
+        raise MogError(f"{what} must be at most {upper:g}, got {v!r}")
     return f
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """A text file's contents, or one `MogError` line saying why not: missing, a directory,
+    unreadable, too large or not text."""
+    path = Path(path)
+    if not path.exists():
+        raise MogError(f"{what} not found: {path}")
+    if path.is_dir():
+        raise MogError(f"{path}: is a directory, not a {what}")
+    try:
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise MogError(f"{path}: over {MAX_FILE_BYTES // 2**20} MiB, not a {what}")
+        return path.read_bytes().decode("utf-8")
+    except PermissionError:
+        raise MogError(f"{path}: permission denied") from None
+    except UnicodeDecodeError:
+        raise MogError(f"{path}: not a text file") from None
+    except OSError as e:
+        raise MogError(f"{path}: cannot be read ({e.strerror or e})") from None
 
 
 def _read_yaml(path: Path) -> dict:
     path = Path(path)
-    if not path.is_file():
-        raise MogError(f"file not found: {path}")
+    text = read_text(path, "YAML file")
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""

@@ -19,6 +19,9 @@ from mog_drake.scenes.library import Shape, ShapeLibrary, _read_yaml, default_li
 
 #: Default table top (xmin, xmax, ymin, ymax) in m: objects must lie inside it.
 DEFAULT_TABLE = (-0.25, 0.25, -0.25, 0.25)
+#: Table bounds (m) beyond this are typos; so is a yaw beyond MAX_YAW (rad).
+MAX_TABLE = 100.0
+MAX_YAW = 1e3
 #: Two objects may overlap by at most this area (m^2, = 1 mm^2) before a scene is refused.
 DEFAULT_OVERLAP_TOL = 1e-6
 
@@ -93,16 +96,32 @@ class Scene:
     def validate(self, overlap_tol: float = DEFAULT_OVERLAP_TOL) -> Scene:
         """Refuses unknown shapes, non-finite poses, objects off the table and overlaps."""
         x0, x1, y0, y1 = self.table
-        if not all(math.isfinite(v) for v in self.table) or x1 <= x0 or y1 <= y0:
-            raise MogError(f"table bounds must be finite with xmin < xmax and ymin < ymax, got {self.table}")
+        if not all(math.isfinite(v) and abs(v) <= MAX_TABLE for v in self.table) or x1 <= x0 or y1 <= y0:
+            raise MogError(
+                f"table bounds must be within +-{MAX_TABLE:g} m with xmin < xmax and ymin < ymax, got {list(self.table)}"
+            )
         for i, o in enumerate(self.objects):
             self.library[o.shape]  # raises on unknown shape
             if not all(math.isfinite(v) for v in o.pose):
                 raise MogError(f"object {i} ({o.shape}): pose {list(o.pose)} is not finite")
+            # Checked on the numbers first: far enough out, a polygon collapses in floating
+            # point and its area no longer says where it is.
+            if not (x0 <= o.x <= x1 and y0 <= o.y <= y1):
+                raise MogError(
+                    f"object {i} ({o.shape}) at ({o.x:g}, {o.y:g}) lies off the table {list(self.table)}"
+                )
+            if abs(o.theta) > MAX_YAW:
+                raise MogError(
+                    f"object {i} ({o.shape}): yaw {o.theta:g} rad is not an angle (|theta| <= {MAX_YAW:g})"
+                )
         if self.group is not None:
+            if not self.group:
+                raise MogError("group is empty: name at least one object, or leave 'group' out")
             for g in self.group:
                 if not 0 <= g < len(self):
                     raise MogError(f"group names object {g}, but the scene has {len(self)} objects")
+            if len(set(self.group)) != len(self.group):
+                raise MogError(f"group {list(self.group)} names an object twice")
         polys = self.shapely_polygons()
         table = shapely.box(x0, y0, x1, y1)
         for i, p in enumerate(polys):
@@ -147,6 +166,8 @@ class Scene:
         if unknown:
             raise MogError(f"{where}: unknown key(s) {sorted(unknown)}")
         shapes_file = data.get("shapes")
+        if shapes_file is not None and not isinstance(shapes_file, str):
+            raise MogError(f"{where}: 'shapes' must be the path of a shapes file, got {shapes_file!r}")
         if library is None:
             if shapes_file:
                 p = Path(shapes_file)
@@ -155,32 +176,45 @@ class Scene:
                 library = ShapeLibrary.load(p)
             else:
                 library = default_library()
+        meta = data.get("meta") or {}
+        if not isinstance(meta, dict):
+            raise MogError(f"{where}: 'meta' must be a mapping, got {type(meta).__name__}")
         objs_raw = data.get("objects")
-        if not isinstance(objs_raw, list):
-            raise MogError(f"{where}: 'objects' must be a list")
+        if not isinstance(objs_raw, list) or not objs_raw:
+            raise MogError(f"{where}: 'objects' must be a list of at least one object")
         objects = []
         for i, o in enumerate(objs_raw):
             if not isinstance(o, dict) or "shape" not in o or "pose" not in o:
                 raise MogError(f"{where}: object {i} needs 'shape' and 'pose: [x, y, theta]'")
             pose = o["pose"]
             try:
+                if isinstance(pose, (str, bytes, dict)) or any(isinstance(v, bool) for v in pose):
+                    raise TypeError
                 x, y, th = (float(v) for v in pose)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise MogError(f"{where}: object {i} pose must be three numbers [x, y, theta]") from None
-            objects.append(SceneObject(str(o["shape"]), x, y, th))
+            if not isinstance(o["shape"], str):
+                raise MogError(f"{where}: object {i} shape must be a shape's name, got {o['shape']!r}")
+            objects.append(SceneObject(o["shape"], x, y, th))
         table = data.get("table", DEFAULT_TABLE)
         try:
+            if isinstance(table, (str, bytes, dict)):
+                raise TypeError
             table = tuple(float(v) for v in table)
             assert len(table) == 4
-        except (TypeError, ValueError, AssertionError):
+        except (TypeError, ValueError, AssertionError, OverflowError):
             raise MogError(f"{where}: 'table' must be [xmin, xmax, ymin, ymax]") from None
         group = data.get("group")
         if group is not None:
             try:
-                group = tuple(int(g) for g in group)
+                if isinstance(group, (str, bytes, dict)) or not all(
+                    isinstance(g, int) and not isinstance(g, bool) for g in group
+                ):
+                    raise TypeError
+                group = tuple(group)
             except (TypeError, ValueError):
                 raise MogError(f"{where}: 'group' must be a list of object indices") from None
-        scene = cls(objects, library, table, group, dict(data.get("meta", {}) or {}), shapes_file)
+        scene = cls(objects, library, table, group, dict(meta), shapes_file)
         try:
             return scene.validate()
         except MogError as e:

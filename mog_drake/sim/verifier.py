@@ -17,6 +17,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector, DiagramBuilder, EventStatus, LeafSystem
 
 from mog_drake.geometry import GripperGeometry, objects_in_reach
+from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -218,7 +219,19 @@ class DrakeVerifier:
         t0 = time.perf_counter()
         grasp = np.asarray(grasp, dtype=float)
         if grasp.shape != (3,) or not np.all(np.isfinite(grasp)):
-            return GraspResult(False, error=f"grasp must be three finite numbers, got {grasp.tolist()}")
+            return GraspResult(
+                False, error=f"grasp must be three finite numbers, got {grasp.tolist()}", complete=False
+            )
+        # Open jaws placed inside an object start in penetration, and the contact's push-out
+        # can "lift" it: such a grasp is no grasp (the planner only simulates collision-free
+        # candidates; a grasp given by hand may not be).
+        if not jaw_collision_free(scene.polygons(), grasp[None, :], self.gripper)[0]:
+            return GraspResult(
+                False,
+                wall_time=time.perf_counter() - t0,
+                error="the open jaws start in collision with an object",
+                complete=False,
+            )
         sim, built = self._sim_for(scene, group)
         result = self._run(sim, group, grasp, t0)
         result.built = built
@@ -306,7 +319,11 @@ class DrakeVerifier:
                 or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
             )
             return GraspResult(
-                False, sim_time=sim.context.get_time(), wall_time=time.perf_counter() - t0, error=msg
+                False,
+                sim_time=sim.context.get_time(),
+                wall_time=time.perf_counter() - t0,
+                error=msg,
+                complete=False,
             )
         finally:
             sim.simulator.clear_monitor()
@@ -321,7 +338,9 @@ class DrakeVerifier:
         wall = time.perf_counter() - t0
         t = sim.context.get_time()
         if not np.all(np.isfinite(q)):
-            return GraspResult(False, sim_time=t, wall_time=wall, error="non-finite state at the end")
+            return GraspResult(
+                False, sim_time=t, wall_time=wall, error="non-finite state at the end", complete=False
+            )
         x0, x1, y0, y1 = sim.table
         lifted, errors = [], []
         threshold = cfg.lifted_height
@@ -334,6 +353,6 @@ class DrakeVerifier:
         jl, jr = sim.gripper.joints[4], sim.gripper.joints[5]
         opening = jr.get_translation(pc) - jl.get_translation(pc) - self.gripper.plate_thickness
         if errors:
-            return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors))
+            return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors), complete=False)
         success = not early and all(int(i) in lifted for i in group)
         return GraspResult(success, lifted, float(opening), t, wall, complete=not early)

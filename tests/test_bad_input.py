@@ -1,0 +1,425 @@
+"""Bad input gets one line and exit 2 (or a correct result), never a traceback or a false
+success; machine-readable output is strict JSON; sweeps stay whole."""
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mog_drake.cli import main
+from mog_drake.errors import MogError
+from mog_drake.scenario import scenario_from_text
+from mog_drake.scenes import Scene
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def one_line_error(code, err, *words):
+    assert code == 2, err
+    assert err.startswith("mog-drake: error: ") and err.count("\n") == 1, err
+    for w in words:
+        assert w in err, err
+
+
+def strict_json(text: str):
+    """json.loads that refuses NaN and Infinity, as a strict parser does."""
+
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+# --- wrong answers ---------------------------------------------------------------------------
+def _write(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def test_an_object_far_off_the_table_is_refused(tmp_path, capsys):
+    f = _write(
+        tmp_path,
+        "far.yaml",
+        """
+        objects:
+        - {shape: thin_bar, pose: [0, 0, 0]}
+        - {shape: thin_bar, pose: [1e15, 0, 0]}
+        - {shape: thick_bar, pose: [1e15, 0, 0]}
+        group: [0]
+        """,
+    )
+    code, out, err = run(capsys, "check", f, "--grasp", 0, 0, 0, "--simulate", "--json")
+    one_line_error(code, err, "object 1 (thin_bar)", "off the table")
+    assert out == ""
+
+
+@pytest.mark.parametrize("group,words", [("[0, 0]", "names an object twice"), ("[]", "group is empty")])
+def test_a_duplicate_or_empty_group_in_a_scene_file_is_refused(tmp_path, capsys, group, words):
+    f = _write(
+        tmp_path,
+        "g.yaml",
+        f"""
+        objects:
+        - {{shape: thin_bar, pose: [0, 0, 0]}}
+        - {{shape: thick_bar, pose: [0.1, 0, 0]}}
+        group: {group}
+        """,
+    )
+    for cmd in (["check", f, "--grasp", 0, 0, 0], ["candidates", f]):
+        code, _, err = run(capsys, *cmd)
+        one_line_error(code, err, words)
+
+
+def test_a_grasp_starting_in_collision_is_no_success(tmp_path, capsys):
+    """The issue's case: the open jaws placed across a row's objects start in penetration,
+    which used to "lift" them."""
+    scene = tmp_path / "row.yaml"
+    assert run(capsys, "scene", "generate", "--kind", "row", "--class", 3, "--seed", 1, "-o", scene)[0] == 0
+    code, out, _ = run(capsys, "check", scene, "--grasp", 0.01688, 0.00081, 0.4488, "--simulate", "--json")
+    doc = strict_json(out)
+    assert code == 0 and doc["collision_free"] is False
+    sim = doc["simulation"]
+    assert sim["success"] is False and "collision" in sim["error"] and sim["complete"] is False
+
+
+def test_faulted_physics_results_are_not_complete():
+    import numpy as np
+
+    from mog_drake.scenes import row_scene
+    from mog_drake.sim.verifier import DrakeVerifier
+
+    scene = row_scene(2, np.random.default_rng(0))
+    r = DrakeVerifier().check(scene, scene.group, [float("nan"), 0, 0])
+    assert r.error and not r.success and r.complete is False
+
+
+# --- files that are not what they should be ---------------------------------------------------
+def _pick(capsys, scenario):
+    return run(capsys, "pick", "--scenario", scenario, "--time-limit", 1)
+
+
+def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
+    one_line_error(*_pick(capsys, tmp_path / "missing.yaml")[::2], "not found")
+    one_line_error(*_pick(capsys, tmp_path)[::2], "is a directory")
+    binary = tmp_path / "bin.yaml"
+    binary.write_bytes(bytes(range(256)) * 4)
+    one_line_error(*_pick(capsys, binary)[::2], "not a text file")
+    typed = _write(tmp_path, "typed.yaml", "planner: {hold_s: abc}\n")
+    one_line_error(*_pick(capsys, typed)[::2], "planner.hold_s", "abc")
+    # Unreadable: as root every file is readable, so the OS's refusal is modelled.
+    locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
+    real = Path.read_bytes
+    monkeypatch.setattr(
+        Path,
+        "read_bytes",
+        lambda self: (_ for _ in ()).throw(PermissionError(13, "denied")) if self == locked else real(self),
+    )
+    one_line_error(*_pick(capsys, locked)[::2], "permission denied")
+
+
+@pytest.mark.parametrize(
+    "text,key",
+    [
+        ("time_limit: -5", "time_limit"),
+        ("time_limit: .nan", "time_limit"),
+        ("gripper: {force_limit: 1e308}", "gripper.force_limit"),
+        ("gripper: {force_limit: -40}", "gripper.force_limit"),
+        ("robot: {max_joint_speed: 0}", "robot.max_joint_speed"),
+        ("robot: {base: [.nan, 0, 0]}", "robot.base"),
+        ("table: [.nan, 0.3, -0.4, 0.4]", "table"),
+        ("camera: {width: -640}", "camera.width"),
+        ("scene: !RowScene {row_class: x}", "scene.row_class"),
+        ("colour: red", "colour"),
+    ],
+)
+def test_invalid_scenario_values_are_refused_at_load_naming_the_key(text, key):
+    with pytest.raises(MogError, match=f"^scenario: {key.replace('.', '[.]')}"):
+        scenario_from_text(text)
+
+
+@pytest.mark.parametrize(
+    "extra,words",
+    [
+        ("meta: [1, 2, 3]", "'meta' must be a mapping"),
+        ('meta: "x"', "'meta' must be a mapping"),
+        ("shapes: 123", "'shapes' must be the path"),
+        ("shapes: [a.yaml]", "'shapes' must be the path"),
+    ],
+)
+def test_scene_files_with_wrongly_typed_fields(tmp_path, capsys, extra, words):
+    f = _write(tmp_path, "s.yaml", "objects:\n- {shape: thin_bar, pose: [0, 0, 0]}\n" + extra + "\n")
+    one_line_error(*run(capsys, "candidates", f)[::2], words)
+
+
+def test_a_scene_with_no_objects_and_a_shape_of_absurd_height(tmp_path, capsys):
+    one_line_error(
+        *run(capsys, "candidates", _write(tmp_path, "e.yaml", "objects: []\n"))[::2], "at least one"
+    )
+    shapes = _write(
+        tmp_path,
+        "tall.yaml",
+        "shapes:\n  tower: {vertices: [[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01], [-0.01, 0.01]], height: 1e308}\n",
+    )
+    one_line_error(*run(capsys, "shapes", "--shapes", shapes)[::2], "tower", "height")
+
+
+# --- command-line arguments -----------------------------------------------------------------------
+def test_bad_arguments_get_one_line(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    assert run(capsys, "scene", "generate", "--kind", "row", "--class", 2, "--seed", 1, "-o", scene)[0] == 0
+    cases = [
+        (["scene", "generate", "--kind", "row", "--class", 2, "--seed", -1], "--seed"),
+        (["plan", scene, "--seed", -3], "--seed"),
+        (["pick", "--time-limit", "nan"], "--time-limit"),
+        (["pick", "--time-limit", -1], "--time-limit"),
+        (["gripper", "--ip", "127.0.0.1", "--timeout", -1, "status"], "--timeout"),
+        (["scene", "show", scene, "-o", tmp_path / "x.bmpx"], "unknown file type"),
+        (["scene", "show", scene, "-o", tmp_path], "is a directory"),
+        (["pick", "--bogus"], "unrecognized arguments"),
+        (["check", scene], "--grasp"),
+        (["nonsense"], "invalid choice"),
+    ]
+    for argv, words in cases:
+        one_line_error(*run(capsys, *argv)[::2], words)
+
+
+def test_negative_numbers_in_exponent_form_are_numbers(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    run(capsys, "scene", "generate", "--kind", "row", "--class", 2, "--seed", 1, "-o", scene)
+    code, out, err = run(capsys, "check", scene, "--grasp", "-1e-3", "0", "-2.5E-1", "--json")
+    assert code == 0, err
+    assert strict_json(out)["grasp"] == pytest.approx([-1e-3, 0.0, -0.25])
+
+
+# --- machine-readable output -----------------------------------------------------------------
+def test_pick_json_is_strict_json_even_with_no_attempt(capsys):
+    # 0.1 s of robot time: the run ends before its first attempt, so every rate is undefined.
+    code, out, err = run(capsys, "pick", "--objects", 1, "--seed", 0, "--time-limit", 0.1, "--json")
+    assert code == 0, err
+    doc = strict_json(out)
+    assert doc["summary"]["attempts"] == 0 and doc["summary"]["success_rate"] is None
+
+
+def test_demo_json_is_one_document(tmp_path, capsys):
+    code, out, _ = run(capsys, "demo", "--out", tmp_path, "--json")
+    assert code == 0
+    assert [s["name"] for s in strict_json(out)["scenes"]] == ["row4", "cluttered"]
+
+
+# --- sweeps -----------------------------------------------------------------------------------
+def _echo(task):
+    return {"key": task["key"], "value": task["value"]}
+
+
+def _sleepy(task):
+    time.sleep(60)
+    return {"key": task["key"]}
+
+
+def test_a_corrupt_line_mid_file_is_skipped_with_a_warning_and_run_again(tmp_path, capsys):
+    from mog_drake.experiments.sweep import load_results, run_sweep
+
+    tasks = [{"key": f"k{i}", "value": i} for i in range(3)]
+    path = tmp_path / "results.jsonl"
+    path.write_text('{"key": "k0", "value": 0}\n{"key": "k1", "val\x00garbage\n{"key": "k2", "value": 2}\n')
+    assert set(load_results(path, repair=False)) == {"k0", "k2"}
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "line 2 is not a result record" in err
+    results = run_sweep(tasks, _echo, tmp_path, progress=False)
+    assert [r["value"] for r in results] == [0, 1, 2]
+    lines = path.read_text().splitlines()
+    assert len(lines) == 3 and all(json.loads(x) for x in lines)  # the corrupt line is gone
+
+
+def test_a_second_sweep_on_the_same_folder_is_refused_naming_the_holder(tmp_path):
+    import fcntl
+
+    from mog_drake.experiments.sweep import run_sweep
+
+    with open(tmp_path / ".lock", "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        f.write("4242")
+        f.flush()
+        with pytest.raises(MogError, match=r"in use by another sweep \(process 4242\)"):
+            run_sweep([{"key": "a", "value": 1}], _echo, tmp_path, progress=False)
+    assert not (tmp_path / "results.jsonl").exists()
+    assert run_sweep([{"key": "a", "value": 1}], _echo, tmp_path, progress=False) == [
+        {"key": "a", "value": 1}
+    ]
+
+
+def test_summary_only_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "p"
+    argv = ["eval", "picking", "--scenes", "1", "--modes", "sog", "--objects", "1", "--time-limit", "10"]
+    assert main([*argv, "--out", str(out), "--jobs", "1"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    # A summary of a subset (no tables asked for beyond the one run) only reads.
+    assert main([*argv, "--out", str(out), "--summary-only"]) == 0
+    assert "summary only: nothing written" in capsys.readouterr().out
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_workers_exit_when_their_parent_is_killed(tmp_path):
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from test_bad_input import _sleepy
+        from mog_drake.experiments.sweep import run_sweep
+        run_sweep([{{"key": "a"}}, {{"key": "b"}}], _sleepy, {str(tmp_path)!r}, jobs=2, progress=False)
+        """
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script])
+
+    def children(pid):
+        out = []
+        for d in Path("/proc").iterdir():
+            if d.name.isdigit():
+                try:
+                    if int((d / "stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.append(int(d.name))
+                except (OSError, IndexError, ValueError):
+                    pass
+        return out
+
+    for _ in range(200):  # the pool's two workers start (bounded wait)
+        kids = children(parent.pid)
+        if len(kids) >= 2:
+            break
+        time.sleep(0.1)
+    assert len(kids) >= 2
+    time.sleep(1.0)  # the workers are inside their 60 s task
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    for _ in range(100):  # bounded: they must go long before their task would end
+        alive = [
+            k
+            for k in kids
+            if Path(f"/proc/{k}").exists()
+            and "Z" not in (Path(f"/proc/{k}/stat").read_text().rsplit(")", 1)[1].split()[0])
+        ]
+        if not alive:
+            break
+        time.sleep(0.1)
+    assert not alive
+
+
+# --- random malformed files fed to the loaders ------------------------------------------------
+_leaf = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**20), 10**20),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([1e308, -1e308, 1e-320, 3e14, -0.0]),
+    st.text(max_size=6),
+)
+_value = st.recursive(
+    _leaf,
+    lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=6), c, max_size=3),
+    max_leaves=8,
+)
+_pose = st.lists(
+    st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([1e15, -3e14, 0.05])),
+    min_size=0,
+    max_size=4,
+)
+_object = st.fixed_dictionaries(
+    {
+        "shape": st.one_of(st.sampled_from(["thin_bar", "thick_bar", "red_triangle", "nope"]), _leaf),
+        "pose": st.one_of(_pose, _leaf),
+    }
+)
+_scene_doc = st.fixed_dictionaries(
+    {"objects": st.one_of(st.lists(_object, max_size=4), _leaf)},
+    optional={
+        "group": st.one_of(st.lists(st.integers(-2, 5), max_size=4), _leaf),
+        "table": st.one_of(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=5), _leaf),
+        "meta": _value,
+        "shapes": _value,
+    },
+)
+
+
+def _valid_scene(scene: Scene) -> None:
+    x0, x1, y0, y1 = scene.table
+    assert len(scene) >= 1 and x0 < x1 and y0 < y1
+    for o in scene.objects:
+        assert all(math.isfinite(v) for v in o.pose) and x0 <= o.x <= x1 and y0 <= o.y <= y1
+        assert o.shape in scene.library.shapes
+    if scene.group is not None:
+        assert scene.group and len(set(scene.group)) == len(scene.group)
+        assert all(0 <= g < len(scene) for g in scene.group)
+    assert all(p.is_valid and p.area > 0 for p in scene.shapely_polygons())
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_scene_doc)
+def test_random_malformed_scene_files_end_in_a_mog_error_or_a_valid_scene(doc):
+    try:
+        scene = Scene.from_dict(doc)
+    except MogError:
+        return
+    _valid_scene(scene)
+
+
+_scenario_keys = st.sampled_from(
+    [
+        "time_limit",
+        "table",
+        "robot.base",
+        "robot.max_joint_speed",
+        "robot.reach",
+        "gripper.force_limit",
+        "gripper.close_speed",
+        "camera.width",
+        "camera.z_far",
+        "planner.hold_s",
+        "planner.group_radius",
+        "planner.mode",
+        "contact.plant.time_step",
+        "controller.period",
+        "bin.depth",
+        "hardware.max_joint_speed",
+        "hardware.workspace",
+    ]
+)
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(_scenario_keys, _value), min_size=1, max_size=3))
+def test_random_malformed_scenarios_end_in_a_mog_error_or_a_checked_scenario(pairs):
+    doc: dict = {}
+    for key, value in pairs:
+        node = doc
+        *parents, last = key.split(".")
+        for k in parents:
+            node = node.setdefault(k, {})
+        node[last] = value
+    try:
+        text = yaml.safe_dump(doc)
+    except yaml.YAMLError:
+        return
+    try:
+        sc = scenario_from_text(text)
+    except MogError:
+        return
+    # Accepted: it must then be a scenario every check passes, with nothing non-finite in it.
+    from mog_drake.scenario import _finite_leaves, check_scenario
+
+    check_scenario(sc)
+    assert all(math.isfinite(v) for _, v in _finite_leaves(sc))
