@@ -155,3 +155,20 @@ def separate_overlaps(objects, library, gap: float = 2e-4, iterations: int = 20)
         if not changed:
             break
     return objs, moved
+
+
+class PointIndex:
+    """Points sorted along x once, so the points within ``r`` of a centre are found from a
+    narrow x band, not a scan of all of them. Returned in their original order (sums over them
+    then add up in the same order as a full scan's)."""
+
+    def __init__(self, points: np.ndarray):
+        self.points = np.asarray(points, float)
+        self._order = np.argsort(self.points[:, 0], kind="stable")
+        self._x = self.points[self._order, 0]
+
+    def within(self, centre, r: float) -> np.ndarray:
+        lo, hi = np.searchsorted(self._x, [centre[0] - r, centre[0] + r], side="left")
+        idx = np.sort(self._order[lo:hi])
+        band = self.points[idx]
+        return band[np.linalg.norm(band - centre, axis=1) < r]
