@@ -775,6 +775,10 @@ def main(argv: list[str] | None = None) -> int:
     except MogError as e:  # HardwareFault included: exit 3
         print(f"mog-drake: error: {' '.join(str(e).split())}", file=sys.stderr)
         return e.exit_code
+    except OSError as e:  # a path that cannot be written or read (permissions, a full disk)
+        where = f": {e.filename}" if getattr(e, "filename", None) else ""
+        print(f"mog-drake: error: {e.strerror or e}{where}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("mog-drake: interrupted", file=sys.stderr)
         return 130

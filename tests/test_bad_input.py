@@ -198,6 +198,25 @@ def test_bad_arguments_get_one_line(tmp_path, capsys):
         one_line_error(*run(capsys, *argv)[::2], words)
 
 
+def test_an_unwritable_output_and_a_broken_replay_frame_get_one_line(tmp_path, capsys):
+    scene = tmp_path / "row.yaml"
+    run(capsys, "scene", "generate", "--kind", "row", "--class", 2, "--seed", 1, "-o", scene)
+    blocker = tmp_path / "file"
+    blocker.write_text("x")  # a file where a folder should be: nothing can be written under it
+    one_line_error(*run(capsys, "scene", "show", scene, "-o", blocker / "x.png")[::2], str(blocker))
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    (frames / "frame_0000.npz").write_bytes(b"not an npz")
+    hw = _write(
+        tmp_path,
+        "hw.yaml",
+        f"hardware: {{enabled: true, dry_run: true, camera: !ReplaySource {{dir: '{frames}'}}}}\n",
+    )
+    one_line_error(
+        *run(capsys, "pick", "--scenario", hw, "--robot-ip", "192.0.2.1")[::2], "not a readable frame"
+    )
+
+
 def test_negative_numbers_in_exponent_form_are_numbers(tmp_path, capsys):
     scene = tmp_path / "row.yaml"
     run(capsys, "scene", "generate", "--kind", "row", "--class", 2, "--seed", 1, "-o", scene)

@@ -491,10 +491,20 @@ class ReplayCamera(LeafSystem):
             raise MogError(f"no recorded frames (frame_*.npz) in {folder}")
         self._frames = []
         for f in files:
-            d = np.load(f)
-            if "rgb" not in d or "depth" not in d:
-                raise MogError(f"{f}: a frame needs arrays 'rgb' and 'depth'")
-            self._frames.append((_rgba(d["rgb"]), _depth(d["depth"])))
+            try:
+                d = np.load(f)
+                if "rgb" not in d or "depth" not in d:
+                    raise MogError(f"{f}: a frame needs arrays 'rgb' and 'depth'")
+                rgb, depth = np.asarray(d["rgb"]), np.asarray(d["depth"], np.float32)
+            except MogError:
+                raise
+            except Exception as e:  # unreadable, truncated, not an npz
+                raise MogError(f"{f}: not a readable frame ({type(e).__name__}: {e})") from None
+            if rgb.ndim != 3 or rgb.shape[2] not in (3, 4) or depth.shape[:2] != rgb.shape[:2]:
+                raise MogError(
+                    f"{f}: rgb must be (H, W, 3 or 4) and depth (H, W), got {rgb.shape} and {depth.shape}"
+                )
+            self._frames.append((_rgba(rgb), _depth(depth)))
         self._period = frame_period
         self.DeclareAbstractOutputPort(
             "camera.rgb_image",
