@@ -393,6 +393,9 @@ def check_scenario(sc: Scenario) -> None:
     hw = sc.hardware
     _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
     _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)
+    _in(hw.burst_window, "hardware.burst_window (s)", 0, 1.0)
+    _in(hw.stale_after, "hardware.stale_after (s)", 0, 10.0)
+    _in(hw.link_clearance, "hardware.link_clearance (m)", 0, 1.0, lo_open=False)
     _box(hw.workspace, "hardware.workspace", 6)
     if hw.link_box:
         _box(hw.link_box, "hardware.link_box", 6)

@@ -29,6 +29,7 @@ from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.hardware.robotiq import fault_text, move_state
 from mog_drake.sim.ur5 import DH_A, DH_ALPHA, DH_D, JOINT_LIMIT, base_transform, dh_transform, palm_in_flange
 
 #: The UR5's DH frames 1..6, by the joint they carry.
@@ -431,17 +432,13 @@ class RobotiqDriver(LeafSystem):
             except MogError as e:
                 return self._fail(str(e))
             if s["fault"]:
-                from mog_drake.hardware.robotiq import fault_text
-
                 return self._fail(fault_text(s["fault"]))
-            if self._sent["pos"] is not None and (s["pre"] != self._sent["pos"] or s["moving"]):
-                waited = self._clock() - self._sent["at"]
-                if waited > self._move_timeout:
-                    if s["pre"] != self._sent["pos"]:
-                        return self._fail(
-                            f"the gripper did not take the command: PRE {s['pre']}, expected {self._sent['pos']}"
-                        )
-                    return self._fail(f"still moving {waited:.1f} s after the command (OBJ 0)")
+            if self._sent["pos"] is not None:
+                _, problem = move_state(
+                    s, self._sent["pos"], self._clock() - self._sent["at"], self._move_timeout
+                )
+                if problem:
+                    return self._fail(problem)
             w = s["width"]
         discrete_state.get_mutable_vector(self._state).SetFromVector([w, (w - old[0]) / self._period])
         return EventStatus.Succeeded()

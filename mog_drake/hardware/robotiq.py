@@ -53,6 +53,22 @@ def fault_text(code: int) -> str:
     return f"fault 0x{code:02X} ({FAULTS.get(code, 'unknown fault code')})"
 
 
+def move_state(status: dict, pos: int, waited: float, timeout: float) -> tuple[bool, str]:
+    """(done, problem) of a move to position request ``pos``, ``waited`` s after it was sent,
+    from one `RobotiqClient.status`: done once the gripper took it (PRE) and stopped (OBJ
+    non-zero); a problem is a fault code, or past ``timeout`` a command the gripper did not
+    take or a move that does not end. The client's `wait` and the driver's poll both judge so."""
+    if status["fault"]:
+        return False, f"{fault_text(status['fault'])} during the move"
+    if status["pre"] == pos and not status["moving"]:
+        return True, ""
+    if waited > timeout:
+        if status["pre"] != pos:
+            return False, f"the gripper did not take the command: PRE {status['pre']}, expected {pos}"
+        return False, f"still moving {timeout:g} s after the command (OBJ 0)"
+    return False, ""
+
+
 class RobotiqError(HardwareFault):
     """The gripper reported a fault, refused or ignored a command, answered late or nonsense,
     or hung up. Messages start with ``gripper:``."""
@@ -210,19 +226,14 @@ class RobotiqClient:
     def wait(self, pos: int) -> dict:
         """Waits for the move to ``pos`` to end: the request taken (PRE), then OBJ non-zero,
         then FLT read. Returns the status."""
-        deadline = time.monotonic() + self.move_timeout
+        sent = time.monotonic()
         while True:
             s = self.status()
-            if s["fault"]:
-                raise RobotiqError(f"{fault_text(s['fault'])} during the move")
-            if s["pre"] == pos and not s["moving"]:
+            done, problem = move_state(s, pos, time.monotonic() - sent, self.move_timeout)
+            if problem:
+                raise RobotiqError(problem)
+            if done:
                 break
-            if time.monotonic() > deadline:
-                if s["pre"] != pos:
-                    raise RobotiqError(
-                        f"the gripper did not take the command: PRE {s['pre']}, expected {pos}"
-                    )
-                raise RobotiqError(f"still moving {self.move_timeout:g} s after the command (OBJ 0)")
             time.sleep(self.POLL)
         self.check_fault("after the move")
         return s

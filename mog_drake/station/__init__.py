@@ -23,7 +23,7 @@ World frame = table frame: origin at the centre of the table top, z up.
 * `mog_drake.station.scoring`: ground-truth scoring, outside the Diagram.
 """
 
-from mog_drake.scenario import Scenario
+from mog_drake.scenario import Scenario, check_scenario
 from mog_drake.station.hardware import MakeHardwareStation
 from mog_drake.station.ports import PORTS_IN, PORTS_OUT, SIM_ONLY_PORTS
 from mog_drake.station.sim import MakeSimStation, StationHandles, hold_still, render_still, scene_from_spec
@@ -45,7 +45,9 @@ __all__ = [
 def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: dict | None = None):
     """The station of ``scenario``: the hardware one if ``scenario.hardware.enabled`` (clients
     may be injected, e.g. test fakes), else the simulated one (``scene`` replaces the
-    scenario's own objects)."""
+    scenario's own objects). The scenario is checked first (`check_scenario`): a station built
+    in code gets the same refusals as one loaded from a file."""
+    check_scenario(scenario)
     if scenario.hardware.enabled:
         return MakeHardwareStation(scenario, **(hardware_clients or {}))
     return MakeSimStation(scenario, scene, meshcat)

@@ -3,8 +3,6 @@ exporting the simulated station's port contract (`mog_drake.station`)."""
 
 from __future__ import annotations
 
-import math
-
 from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.errors import HardwareFault, MogError
@@ -49,23 +47,6 @@ class HardwareHandles:
             self._log.close()
 
 
-def _check_spec(hw) -> None:
-    for name in ("max_joint_speed", "servo_period", "stale_after", "burst_window"):
-        v = getattr(hw, name)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise MogError(f"hardware.{name} must be a positive number, got {v!r}")
-    for name in ("workspace", "link_box"):
-        box = list(getattr(hw, name))
-        if name == "link_box" and not box:
-            continue
-        if (
-            len(box) != 6
-            or not all(math.isfinite(v) for v in box)
-            or not all(box[i] < box[i + 1] for i in (0, 2, 4))
-        ):
-            raise MogError(f"hardware.{name} must be [xmin, xmax, ymin, ymax, zmin, zmax], got {box}")
-
-
 def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_client=None):
     """Builds the hardware station. Clients may be injected (tests); otherwise they connect to
     ``scenario.hardware.robot_ip`` (ur_rtde, the Robotiq URCap socket). A dry run connects to
@@ -76,7 +57,6 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
         raise MogError(
             "the hardware station needs an explicit robot address (--robot-ip or hardware.robot_ip)"
         )
-    _check_spec(hw)
     faults = FaultLatch()
     log = CommandLog(hw.command_log) if hw.dry_run else None
     control, receive, gripper = rtde_control, rtde_receive, gripper_client

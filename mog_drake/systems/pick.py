@@ -11,7 +11,7 @@ from pydrake.systems.framework import DiagramBuilder
 from mog_drake.errors import HardwareFault
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.scenario import Scenario, camera_intrinsics, camera_pose, check_scenario
+from mog_drake.scenario import Scenario, camera_intrinsics, camera_pose
 from mog_drake.station import MakeStation
 from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
 from mog_drake.systems.controller import ControllerSystem
@@ -46,7 +46,6 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
 
 def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
-    check_scenario(scenario)
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
     from mog_drake.scenes import default_library
 
