@@ -19,6 +19,8 @@ from mog_drake.hardware.drivers import (
     CommandLog,
     FaultLatch,
     MotionBudget,
+    RealSenseCamera,
+    ReplayCamera,
     RobotiqDriver,
     SafetyLimits,
     SafetyMonitor,
@@ -27,7 +29,7 @@ from mog_drake.hardware.drivers import (
 )
 from mog_drake.hardware.robotiq import RobotiqClient
 from mog_drake.scenario import ClutteredScene, HardwareSpec, ReplaySource, Scenario
-from mog_drake.station import PORTS_IN, PORTS_OUT, MakeStation
+from mog_drake.station import PORTS_IN, PORTS_OUT, MakeStation, rendered_intrinsics
 
 LIMITS = SafetyLimits()
 SLACK = LIMITS.max_joint_speed * LIMITS.burst_window + 1e-3  # rad; 1 mrad for the stamps' skew
@@ -321,8 +323,76 @@ def replay_dir(tmp_path_factory):
         folder,
         d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
         d.GetOutputPort("camera.depth_image").Eval(ctx).data,
+        rendered_intrinsics(sc.camera),
     )
     return folder
+
+
+def test_replayed_frames_bring_their_own_intrinsics(replay_dir, tmp_path):
+    """The replay camera reads back the intrinsics its frames were recorded with, and the
+    hardware station hands them to perception; frames recorded before intrinsics were stored
+    fall back on the scenario's camera with a warning; mixed or invalid ones are refused."""
+    sc = Scenario(hardware=_hw(replay_dir, dry_run=True))
+    _, handles = MakeStation(sc)
+    assert handles.camera_intrinsics == pytest.approx(rendered_intrinsics(sc.camera))
+    frame = dict(np.load(next(replay_dir.glob("frame_*.npz"))))
+    old = tmp_path / "old"
+    old.mkdir()
+    np.savez(old / "frame_0000.npz", rgb=frame["rgb"], depth=frame["depth"])
+    with pytest.warns(UserWarning, match="without intrinsics; using the scenario camera's"):
+        cam = ReplayCamera(str(old), fallback_intrinsics=(600.0, 600.0, 320.0, 240.0))
+    assert cam.intrinsics == (600.0, 600.0, 320.0, 240.0)
+    with pytest.raises(MogError, match="frames without intrinsics"):
+        ReplayCamera(str(old))
+    np.savez(
+        old / "frame_0001.npz",
+        rgb=frame["rgb"],
+        depth=frame["depth"],
+        intrinsics=[600.0, 600.0, 320.0, 240.0],
+    )
+    with pytest.raises(MogError, match="different intrinsics"):
+        ReplayCamera(str(old), fallback_intrinsics=(600.0, 600.0, 320.0, 240.0))
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    np.savez(
+        bad / "frame_0000.npz", rgb=frame["rgb"], depth=frame["depth"], intrinsics=[0.0, 600.0, 320.0, 240.0]
+    )
+    with pytest.raises(MogError, match=r"intrinsics must be \(fx, fy, cx, cy\) with fx, fy > 0"):
+        ReplayCamera(str(bad))
+
+
+def test_realsense_camera_reads_intrinsics_and_depth_scale_from_the_device(monkeypatch):
+    """The RealSense source takes fx, fy, cx, cy from the colour stream's profile (not from
+    the scenario's field of view) and scales z16 depth by the device's depth scale; a lens
+    with distortion is flagged, a stream of another size is refused (fake: fakes/realsense.py)."""
+    import sys
+
+    from fakes import realsense
+
+    rgb = np.full((48, 64, 3), 120, np.uint8)
+    depth = np.full((48, 64), 0.8)
+    depth[:4] = np.nan  # no depth: z16 0
+    monkeypatch.setitem(sys.modules, "pyrealsense2", realsense.module(rgb, depth, depth_scale=0.00025))
+    cam = RealSenseCamera(64, 48, 30)
+    assert cam.intrinsics == (615.0, 615.5, 318.2, 241.7)
+    sim = Simulator(cam)
+    sim.AdvanceTo(0.05)  # the first grab (at t = 0)
+    ctx = sim.get_context()
+    got = cam.GetOutputPort("camera.depth_image").Eval(ctx).data[:, :, 0]
+    assert np.isnan(got[:4]).all() and got[4:] == pytest.approx(0.8, abs=0.00025)
+    assert (cam.GetOutputPort("camera.rgb_image").Eval(ctx).data[:, :, :3] == 120).all()
+
+    monkeypatch.setitem(sys.modules, "pyrealsense2", realsense.module(rgb, depth, frames=False))
+    with pytest.raises(
+        HardwareFault, match=r"^camera: no frame within 2 s \(Frame didn't arrive within 2000\)$"
+    ):
+        Simulator(RealSenseCamera(64, 48, 30)).AdvanceTo(0.05)
+    monkeypatch.setitem(sys.modules, "pyrealsense2", realsense.module(rgb, depth, coeffs=(0.1, 0, 0, 0, 0)))
+    with pytest.warns(UserWarning, match="lens distortion"):
+        RealSenseCamera(64, 48, 30)
+    monkeypatch.setitem(sys.modules, "pyrealsense2", realsense.module(rgb, depth, stream_size=(640, 480)))
+    with pytest.raises(MogError, match="colour stream is 640 x 480, asked for 64 x 48"):
+        RealSenseCamera(64, 48, 30)
 
 
 def _hw(replay_dir, **kw):

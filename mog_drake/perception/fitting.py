@@ -1,10 +1,11 @@
-"""Fitting library polygons to clusters of object points: symmetry, clusters, seedings, the
-smooth score, and pushing overlapping fits apart."""
+"""Fitting library polygons to what the camera sees: symmetry, connected components, seedings,
+the score of a polygon in the image, and pushing overlapping fits apart."""
 
 import math
 
 import numpy as np
 import shapely
+from scipy import ndimage
 
 from mog_drake.geometry.polygon import convex_hull_ccw, transform
 from mog_drake.scenes import SceneObject
@@ -30,16 +31,25 @@ def _signed_distance(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return ((pts[:, None, :] - poly[None, :, :]) * n[None]).sum(-1).max(axis=1)
 
 
-def _soft_inside(pts: np.ndarray, poly: np.ndarray, s: float) -> np.ndarray:
-    """Smooth indicator of points inside a CCW convex polygon (1 deep inside, 0 outside)."""
-    return 1.0 / (1.0 + np.exp(np.clip(_signed_distance(pts, poly) / s, -50, 50)))
+def near_polygon(x: np.ndarray, y: np.ndarray, poly: np.ndarray, margin: float) -> np.ndarray:
+    """Which points (arrays x, y of any one shape) lie within ``margin`` outside a CCW convex
+    polygon or inside it: `_signed_distance` < margin, one edge at a time (nan: False)."""
+    e = np.roll(poly, -1, axis=0) - poly
+    n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
+    off = (n * poly).sum(axis=1) + margin
+    out = np.isfinite(x) & np.isfinite(y)
+    for (nx, ny), o in zip(n, off):
+        out &= nx * x + ny * y < o
+    return out
 
 
 def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) -> np.ndarray:
     centres = pts[rng.choice(len(pts), size=k, replace=False)]
     for _ in range(iters):
         lab = np.argmin(((pts[:, None] - centres[None]) ** 2).sum(-1), axis=1)
-        centres = np.array([pts[lab == j].mean(axis=0) if np.any(lab == j) else centres[j] for j in range(k)])
+        n = np.bincount(lab, minlength=k)
+        sums = np.stack([np.bincount(lab, pts[:, 0], k), np.bincount(lab, pts[:, 1], k)], axis=1)
+        centres = np.where(n[:, None] > 0, sums / np.maximum(n, 1)[:, None], centres)
     return centres
 
 
@@ -52,13 +62,13 @@ FIT_MARGIN = 0.004  # m
 def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
     """Sets of k centres to fit k instances of one shape from, one set per try. k = 1: the
     centroid. k = 2: the centroids of the two halves of the cluster split at its median along
-    each of 6 directions (k-means splits two bars lying side by side along the blob's longer
-    side, across both bars, and no seeding finds the split between them). k > 2: ``tries``
-    k-means seedings."""
+    each of ``tries + 1`` directions (k-means splits two bars lying side by side along the
+    blob's longer side, across both bars, and no seeding finds the split between them).
+    k > 2: ``tries`` k-means seedings."""
     if k == 1:
-        yield _kmeans(pts, 1, rng)
+        yield pts.mean(axis=0)[None]
     elif k == 2:
-        for a in np.arange(6) * np.pi / 6:
+        for a in np.arange(tries + 1) * np.pi / (tries + 1):
             s = pts @ np.array([np.cos(a), np.sin(a)])
             lo = s <= np.median(s)
             if lo.all() or not lo.any():
@@ -67,36 +77,6 @@ def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
     else:
         for _ in range(tries):
             yield _kmeans(pts, k, rng)
-
-
-def _clusters(pts: np.ndarray, link: float) -> list[np.ndarray]:
-    """Connected clusters of 2-D points (points closer than ``link`` are connected), by grid labelling."""
-    if len(pts) == 0:
-        return []
-    cell = np.floor(pts / link).astype(np.int64)
-    keys = {}
-    for i, c in enumerate(map(tuple, cell)):
-        keys.setdefault(c, []).append(i)
-    parent = {c: c for c in keys}
-
-    def find(c):
-        while parent[c] != c:
-            parent[c] = parent[parent[c]]
-            c = parent[c]
-        return c
-
-    for c in keys:
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                nb = (c[0] + dx, c[1] + dy)
-                if nb in keys:
-                    ra, rb = find(c), find(nb)
-                    if ra != rb:
-                        parent[ra] = rb
-    groups: dict = {}
-    for c, idx in keys.items():
-        groups.setdefault(find(c), []).extend(idx)
-    return [np.array(sorted(v)) for v in groups.values()]
 
 
 def _outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
@@ -157,18 +137,200 @@ def separate_overlaps(objects, library, gap: float = 2e-4, iterations: int = 20)
     return objs, moved
 
 
-class PointIndex:
-    """Points sorted along x once, so the points within ``r`` of a centre are found from a
-    narrow x band, not a scan of all of them. Returned in their original order (sums over them
-    then add up in the same order as a full scan's)."""
+def components(
+    pixels: np.ndarray, shape: tuple[int, int], bridge: int = 1
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Connected components of a set of pixels (flat indices into an image of ``shape``):
+    (labels, members), labels an int image (0 off the set, k + 1 on component k), members[k]
+    its flat pixel indices in ascending order. Pixels up to ``2 * bridge`` pixels apart are
+    joined, so one missing row of depth does not split a top face in two: components are
+    labelled (8-connected) on the set grown by ``bridge`` pixels."""
+    labels = np.zeros(shape, dtype=np.int32)
+    if len(pixels) == 0:
+        return labels, []
+    rows, cols = np.divmod(np.asarray(pixels), shape[1])
+    pad = bridge + 1
+    r0, r1 = max(int(rows.min()) - pad, 0), min(int(rows.max()) + pad + 1, shape[0])
+    c0, c1 = max(int(cols.min()) - pad, 0), min(int(cols.max()) + pad + 1, shape[1])
+    crop = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    crop[rows - r0, cols - c0] = True
+    grown = ndimage.binary_dilation(crop, iterations=bridge) if bridge else crop
+    lab, _ = ndimage.label(grown, structure=np.ones((3, 3), dtype=bool))
+    lab = np.where(crop, lab, 0)
+    labels[r0:r1, c0:c1] = lab
+    cr, cc = np.nonzero(lab)
+    lab_flat = lab[cr, cc]
+    flat = (cr + r0) * shape[1] + (cc + c0)  # ascending, as np.nonzero runs row-major
+    order = np.argsort(lab_flat, kind="stable")
+    cuts = np.flatnonzero(np.diff(lab_flat[order])) + 1
+    # Every grown component holds a pixel of the set: labels run 1..n, in members' order.
+    return labels, np.split(flat[order], cuts)
 
-    def __init__(self, points: np.ndarray):
-        self.points = np.asarray(points, float)
-        self._order = np.argsort(self.points[:, 0], kind="stable")
-        self._x = self.points[self._order, 0]
 
-    def within(self, centre, r: float) -> np.ndarray:
-        lo, hi = np.searchsorted(self._x, [centre[0] - r, centre[0] + r], side="left")
-        idx = np.sort(self._order[lo:hi])
-        band = self.points[idx]
-        return band[np.linalg.norm(band - centre, axis=1) < r]
+class PolygonScore:
+    """The score of a prism's top face at planar poses (x, y, theta): the sum of per-pixel
+    ``evidence`` (+1 a pixel of the object, a negative weight a pixel that rules it out, 0 no
+    evidence) over the pixels the face covers in the image, by Green's theorem: the integral
+    over the projected polygon is the line integral around it of the evidence's running sum
+    along each row. A pose costs V x ``samples`` look-ups, whatever the face's area. Pixels
+    partly covered count in part (the running sum is interpolated), so the score changes
+    continuously as the face moves by a fraction of a pixel.
+
+    ``evidence`` (h, w): a window of the image, its pixel (0, 0) at image pixel ``origin``
+    (u0, v0). ``plane``: the 3 x 3 homography from (x, y, 1) on the face's plane to
+    homogeneous image coordinates. ``vertices`` (V, 2): the face in its body frame."""
+
+    def __init__(self, evidence: np.ndarray, origin, plane: np.ndarray, vertices: np.ndarray, samples: int):
+        h, w = evidence.shape
+        if h < 2 or w < 2:
+            raise ValueError(f"a score window must be at least 2 x 2 pixels, got {h} x {w}")
+        C = np.zeros((h, w + 1), dtype=np.float32)  # sums of at most a few thousand: exact enough
+        np.cumsum(evidence, axis=1, out=C[:, 1:])
+        self._C = C.ravel()
+        self._h, self._w = h, w
+        # The homography to window coordinates, and the column's half-pixel shift (pixel u
+        # covers [u - 0.5, u + 0.5]: the running sum at column coordinate u + 0.5) folded in.
+        shift = np.array([[1.0, 0.0, 0.5 - origin[0]], [0.0, 1.0, -origin[1]], [0.0, 0.0, 1.0]])
+        self._H = shift @ np.asarray(plane, float)
+        v = np.asarray(vertices, float)
+        self._V = np.vstack([v.T, np.ones(len(v))])  # (3, V)
+        self._next = np.roll(np.arange(len(v)), -1)
+        self._samples = samples
+
+    def polygons(self, poses: np.ndarray) -> np.ndarray:
+        """poses (N, 3) -> (N, V, 2) the face's corners in window coordinates (columns shifted
+        by half a pixel, as the running sum is read)."""
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        H = self._H
+        # H @ [[c, -s, x], [s, c, y], [0, 0, 1]]: each pose's homography from body to window.
+        M = np.empty((len(poses), 3, 3))
+        M[:, :, 0] = c[:, None] * H[:, 0] + s[:, None] * H[:, 1]
+        M[:, :, 1] = c[:, None] * H[:, 1] - s[:, None] * H[:, 0]
+        M[:, :, 2] = poses[:, :1] * H[:, 0] + poses[:, 1:2] * H[:, 1] + H[:, 2]
+        q = M @ self._V  # (N, 3, V)
+        return np.stack([q[:, 0] / q[:, 2], q[:, 1] / q[:, 2]], axis=-1)
+
+    def __call__(self, poses: np.ndarray, samples: int | None = None) -> np.ndarray:
+        """poses (N, 3) -> (N,) scores; ``samples`` per edge (default: the score's own; fewer
+        for a coarse look at many poses)."""
+        samples = samples or self._samples
+        p = self.polygons(poses).astype(np.float32)
+        d = p[:, self._next] - p
+        t = ((np.arange(samples) + 0.5) / samples).astype(np.float32)
+        x = p[..., None, 0] + t * d[..., None, 0]
+        y = p[..., None, 1] + t * d[..., None, 1]
+        np.clip(x, 0.0, self._w - 1e-3, out=x)
+        np.clip(y, 0.0, self._h - 1 - 1e-3, out=y)
+        ix, iy = x.astype(np.intp), y.astype(np.intp)
+        x -= ix
+        y -= iy
+        k = iy * (self._w + 1) + ix
+        C = self._C
+        c0 = C[k]
+        top = c0 + x * (C[k + 1] - c0)
+        k += self._w + 1
+        c0 = C[k]
+        top += y * (c0 + x * (C[k + 1] - c0) - top)
+        s = np.einsum("nvm,nv->n", top, d[..., 1]) / samples
+        # The same line integral of x gives the polygon's signed area: its sign is the winding.
+        area = np.einsum("nv,nv->n", p[..., 0] + 0.5 * d[..., 0], d[..., 1])
+        return np.where(area < 0, -s, s)
+
+
+def pixels_inside(polygon: np.ndarray, shape: tuple[int, int], origin: tuple[int, int]) -> np.ndarray:
+    """Which pixel centres of a window (``shape`` (h, w), its pixel (0, 0) at image pixel
+    ``origin``) lie inside a convex polygon (V, 2) in image pixel coordinates."""
+    h, w = shape
+    u = np.arange(w) + origin[0]
+    v = np.arange(h) + origin[1]
+    p = np.asarray(polygon, float)
+    d = np.roll(p, -1, axis=0) - p
+    wind = np.sign(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])) or 1.0
+    inside = np.ones((h, w), dtype=bool)
+    for (px, py), (dx, dy) in zip(p, d):
+        inside &= wind * (dx * (v[:, None] - py) - dy * (u[None, :] - px)) >= 0
+    return inside
+
+
+# A stencil of 19 poses: the centre, a step either way along each coordinate, and a step
+# along each pair of coordinates at once (offsets -1, 0, 1 with at most two non-zero), and
+# the least-squares fit of a quadratic in three variables to scores on it: coefficients of
+# 1, x, y, t, x^2, y^2, t^2, xy, xt, yt.
+_CUBE = (
+    np.array(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], indexing="ij"))
+    .reshape(3, -1)
+    .T
+)
+_STENCIL = _CUBE[np.count_nonzero(_CUBE, axis=1) <= 2]
+_x, _y, _t = _STENCIL.T
+_QUADRATIC = np.linalg.pinv(
+    np.column_stack(
+        [np.ones(len(_STENCIL)), _x, _y, _t, _x * _x, _y * _y, _t * _t, _x * _y, _x * _t, _y * _t]
+    )
+)
+
+
+def quadratic_search(
+    score, starts: np.ndarray, step: np.ndarray, tol: float, max_rounds: int = 12
+) -> tuple[np.ndarray, float]:
+    """Maximises ``score`` (poses (N, 3) -> (N,)) near each start: each round scores a
+    stencil of ``step`` around each pose (`_STENCIL`) and fits a quadratic to it. Where the
+    quadratic has a maximum, the pose moves there (at most one step along each coordinate),
+    else to the stencil's best pose. The step is halved after a round whose move stayed inside
+    the stencil, and kept while the pose is still travelling; the search ends when the first
+    step is below ``tol`` (or after ``max_rounds``). After the first round only the start
+    whose stencil scored best goes on. Returns the best pose scored and its score."""
+    p = np.array(starts, float)
+    h = np.asarray(step, float)
+    best_p, best_s = p[0], -np.inf
+    for r in range(max_rounds):
+        if h[0] < tol:
+            break
+        poses = p[:, None, :] + _STENCIL[None] * h  # (K, 19, 3)
+        s = score(poses.reshape(-1, 3)).reshape(len(p), len(_STENCIL))
+        j = np.argmax(s, axis=1)
+        k = int(np.argmax(s[np.arange(len(p)), j]))
+        if s[k, j[k]] > best_s:
+            best_p, best_s = poses[k, j[k]].copy(), float(s[k, j[k]])
+        if r == 0:  # go on from the best start only
+            p, s, j = p[k : k + 1], s[k], j[k]
+        else:
+            s, j = s[0], j[0]
+        c = _QUADRATIC @ s
+        H = np.array([[2 * c[4], c[7], c[8]], [c[7], 2 * c[5], c[9]], [c[8], c[9], 2 * c[6]]])
+        if np.all(np.linalg.eigvalsh(H) < 0):  # a maximum: Newton's step, clipped
+            move = np.clip(np.linalg.solve(H, -c[1:4]), -1.0, 1.0)
+        else:
+            move = _STENCIL[j]
+        p = p + move * h
+        if np.max(np.abs(move)) < 0.999:  # arrived: look closer
+            h = h / 2
+    s = score(p)
+    if s[0] > best_s:
+        best_p, best_s = p[0], float(s[0])
+    return best_p, best_s
+
+
+def pattern_search(score, starts: np.ndarray, step: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
+    """Maximises ``score`` (poses (N, 3) -> (N,)) from each start at once: each pose tries a
+    step either way along each coordinate, takes the best move that improves it, and halves
+    its steps when none does, until its first step is below ``tol``. Returns the best pose
+    and its score."""
+    p = np.array(starts, float)
+    s = score(p)
+    steps = np.tile(np.asarray(step, float), (len(p), 1))
+    eye = np.vstack([np.eye(3), -np.eye(3)])
+    while True:
+        live = np.flatnonzero(steps[:, 0] >= tol)
+        if len(live) == 0:
+            break
+        moves = p[live, None, :] + eye[None] * steps[live, None, :]  # (L, 6, 3)
+        ms = score(moves.reshape(-1, 3)).reshape(len(live), 6)
+        j = np.argmax(ms, axis=1)
+        better = ms[np.arange(len(live)), j] > s[live]
+        up = live[better]
+        p[up] = moves[better, j[better]]
+        s[up] = ms[better, j[better]]
+        steps[live[~better]] /= 2
+    k = int(np.argmax(s))
+    return p[k], float(s[k])

@@ -1,20 +1,28 @@
 """Object poses from an overhead RGB-D image: what a real camera gives, never ground truth.
 
 1. Back-project every depth pixel to a point in the table frame (camera pose and intrinsics).
-2. Points more than `min_height` above the table are object points; each takes the library
+2. Pixels more than `min_height` above the table are object pixels; each takes the library
    shape whose colour chromaticity (rgb / max channel, which shading does not change) is
-   nearest. Table points are negatives.
-3. Object points of one shape are split into connected clusters; a cluster holds
-   round(visible area / shape area) instances (touching objects included).
-4. Each instance is fitted by maximising a smooth score: points of its shape inside the
-   polygon minus negatives (table, other shapes, instances already fitted) inside, from
-   several starts (k-means centres; angles over the shape's symmetry), refined by a shrinking
-   coordinate search. Fitted points then count as negatives for the next instance.
+   nearest.
+3. For each shape, the object pixels of its colour at its top height form connected
+   components in the image; a component holds round(visible area / shape area) instances
+   (touching objects included).
+4. Each instance is fitted where the shape's top face, projected into the image at its
+   height, covers most evidence: +1 for each pixel of the component, -NEGATIVE_WEIGHT for
+   each pixel that rules the top face out there (a surface lower than the top, such as the
+   table or a side wall; another colour at the top's height; an instance already fitted),
+   0 for a pixel above the top (a taller neighbour hiding part of it says nothing). The
+   score of a pose is a line integral around the projected polygon (`PolygonScore`): its cost
+   grows with the polygon's perimeter, not its area. Starts: the component's centre (k-means
+   centres for several instances) at angles over the shape's symmetry; the best few are
+   refined together by a shrinking coordinate search. Fitted pixels then count against the
+   next instance.
 
-Object points no fitted polygon explains are reported as unrecognised blobs, each with its
+Object pixels no fitted polygon explains are reported as unrecognised blobs, each with its
 outline and top height (``scene.meta["unrecognised"]``).
 
-`Perceiver` runs the steps above. Pure numpy and shapely: no Drake import (the Perception LeafSystem wraps this).
+`Perceiver` runs the steps above. Pure numpy, scipy.ndimage and shapely: no Drake import (the
+Perception LeafSystem wraps this).
 """
 
 import math
@@ -27,16 +35,17 @@ from mog_drake.geometry.polygon import polygon_centroid, transform
 from mog_drake.perception.fitting import (
     FIT_MARGIN,
     NEGATIVE_WEIGHT,
-    PointIndex,
-    _clusters,
+    PolygonScore,
     _outline,
     _seedings,
-    _signed_distance,
-    _soft_inside,
+    components,
+    near_polygon,
+    pixels_inside,
+    quadratic_search,
     separate_overlaps,
     symmetry_order,
 )
-from mog_drake.perception.pointcloud import backproject, chromaticity
+from mog_drake.perception.pointcloud import Pinhole, backproject, chromaticity
 from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 
 
@@ -44,17 +53,21 @@ from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 class PerceptionConfig:
     min_height: float = 0.004  # m above the table: an object point
     max_height: float = 0.060  # m: anything higher (the arm, the bin walls) is ignored
-    softness: float = 0.0004  # m, width of the score's edge
-    min_fraction: float = 0.35  # a cluster smaller than this share of a shape is noise
-    unknown_area: float = 60e-6  # m^2: unexplained object points covering more are an unrecognised blob
-    wall_margin: float = 0.004  # m around a fitted polygon where side-wall points are explained
+    top_band: float = 0.004  # m: a pixel within this of a shape's top height is at its top
+    min_fraction: float = 0.35  # a component smaller than this share of a shape is noise
+    unknown_area: float = 60e-6  # m^2: unexplained object pixels covering more are an unrecognised blob
+    wall_margin: float = 0.004  # m around a fitted polygon where side-wall pixels are explained
     shapes: list[str] = field(default_factory=list)  # shapes to look for (default: every library shape)
-    # A cluster holding three or more instances of one shape (touching, one colour and height)
-    # is split from this many k-means seedings (two instances: from median splits along 6
-    # directions, see _seedings); the split whose fits explain most of its points, less their
-    # spill onto the table, is kept. One seeding split two touching thin bars wrongly on some
-    # pixel grids.
-    separation_tries: int = 5
+    # A component holding several instances of one shape (touching, one colour and height) is
+    # split from this many seedings: k-means centres for three or more instances, median
+    # splits along separation_tries + 1 directions for two (see _seedings). Its instances are
+    # fitted best first; the split whose fits explain most of its pixels, less their spill
+    # onto lower surfaces, is kept, and one whose every fit is clean ends the search.
+    separation_tries: int = 2
+    # m: fits of three or more instances start from centres this far around each seed (a
+    # k-means centre can fall between two bars lying side by side).
+    split_spread: float = 0.006
+    refits: int = 1  # passes fitting each instance of a split again, the others' pixels explained
 
 
 def within_reach(x: float, y: float, reach) -> bool:
@@ -69,6 +82,77 @@ def _inside(P: np.ndarray, rect) -> np.ndarray:
     """Which points of P (..., 3) lie strictly inside rect (xmin, xmax, ymin, ymax) in x, y."""
     x0, x1, y0, y1 = rect
     return (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
+
+
+# The fit's search: its first steps (m, m, rad), and the step (m) it stops at.
+FIT_STEP = (0.002, 0.002, math.radians(3.0))
+FIT_TOL = 3e-4
+# Starting angles: every 5 deg over the shape's symmetry period; the best few are refined.
+START_ANGLE_STEP = math.radians(5.0)
+REFINED_STARTS = 3
+PEAK_SHARE = 0.7  # a peak scoring less than this share of the best is not refined
+SPREAD_GRID = 5  # centres per axis of a split's start grid
+COARSE = 3  # starts are scored with this many times fewer samples per edge
+# A clean fit's score falls short of its area (pixels) by at most this per pixel of its
+# perimeter. Right fits lose about 0.3 (outline pixels partly covered: the part of a pixel
+# outside the top counts against the fit); a fit across two instances loses 2.5 per pixel of
+# table under it, 0.7 or more per pixel of perimeter.
+CLEAN_EDGE = 0.6
+
+
+@dataclass
+class _Fit:
+    """One fitted instance: its pose, the window of the image it was fitted in, which pixels
+    of the window lie inside it and which are lower than its top, its score, and whether it
+    is clean: its score falls short of the pixels it covers by no more than its partly
+    covered outline pixels can take (`CLEAN_EDGE` per pixel of perimeter), so it covers its
+    own instance's pixels and nothing that rules it out."""
+
+    pose: tuple
+    window: tuple
+    inside: np.ndarray
+    lower: np.ndarray
+    score: float
+    clean: bool
+
+    @property
+    def spill(self) -> int:
+        return int((self.inside & self.lower).sum())
+
+
+def _explain(before: np.ndarray, fits: list[_Fit], colour: np.ndarray) -> np.ndarray:
+    """``before`` with the pixels of ``colour`` inside each fit marked explained (a copy)."""
+    out = before.copy()
+    for f in fits:
+        out[f.window] |= f.inside & colour[f.window]
+    return out
+
+
+_CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
+
+
+class _Image:
+    """What one perceive call knows of the image: per-pixel points (P, nan where not on the
+    perceived table), heights, colour classes (-1 off the object pixels), pixel areas, which
+    pixels are explained by a fit, and the camera."""
+
+    def __init__(self, P, z, cls, area, cam):
+        self.P, self.z, self.cls, self.area, self.cam = P, z, cls, area, cam
+        self.shape = z.shape
+        self.xy = P[..., :2].reshape(-1, 2)
+        self.explained = np.zeros(z.shape, dtype=bool)
+
+    def window(self, centre, r: float, height: float, pad: int = 3):
+        """Slices (rows, cols) of the pixels that can see the disc (centre, r) at ``height``."""
+        cx, cy = float(centre[0]), float(centre[1])
+        uv = [self.cam.project_point(cx + sx * r, cy + sy * r, height) for sx, sy in _CORNERS]
+        us, vs = [a for a, _ in uv], [b for _, b in uv]
+        h, w = self.shape
+        u0 = min(max(math.floor(min(us)) - pad, 0), w - 2)
+        u1 = min(max(math.ceil(max(us)) + pad + 1, u0 + 2), w)
+        v0 = min(max(math.floor(min(vs)) - pad, 0), h - 2)
+        v1 = min(max(math.ceil(max(vs)) + pad + 1, v0 + 2), h)
+        return slice(v0, v1), slice(u0, u1)
 
 
 class Perceiver:
@@ -112,6 +196,7 @@ class Perceiver:
             ]
         )
         self.sym = {n: symmetry_order(self.library[n].vertices) for n in names}
+        self.area = [self.library[n].area for n in names]
 
     def perceive(
         self, rgb: np.ndarray, depth: np.ndarray, X_WC: np.ndarray, intrinsics, seed: int = 0
@@ -119,148 +204,201 @@ class Perceiver:
         """rgb (H, W, 3 or 4) uint8, depth (H, W) m, X_WC 4x4 camera pose, intrinsics (fx, fy, cx, cy)."""
         cfg = self.config
         fx, fy, cx, cy = intrinsics
-        P = backproject(np.asarray(depth, float).reshape(rgb.shape[:2]), np.asarray(X_WC), fx, fy, cx, cy)
+        depth = np.asarray(depth, float).reshape(rgb.shape[:2])
+        P = backproject(depth, np.asarray(X_WC, float), fx, fy, cx, cy)
         ok = np.isfinite(P[..., 2]) & _inside(P, self.table)
         for r in self.ignore:
             ok &= ~_inside(P, r)
-        obj = ok & (P[..., 2] > cfg.min_height) & (P[..., 2] < cfg.max_height)
-        table = ok & (P[..., 2] <= cfg.min_height)
+        P[~ok] = np.nan
+        z = P[..., 2]
+        obj = ok & (z > cfg.min_height) & (z < cfg.max_height)
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.
-        area_px = (np.asarray(depth, float).reshape(rgb.shape[:2]) ** 2) / (fx * fy)
-        ch = chromaticity(rgb[..., :3])[obj]
-        cls = self.colour_class[np.argmin(((ch[:, None, :] - self.chroma[None]) ** 2).sum(-1), axis=1)]
-        pts, z, w = P[obj][:, :2], P[obj][:, 2], area_px[obj]
-        negatives = P[table][:, :2]
-        negative_index = PointIndex(negatives)
+        area_px = np.where(obj, depth**2 / (fx * fy), 0.0)
+        # Nearest chromaticity: argmin |c - k|^2 = argmin |k|^2 - 2 c.k.
+        obj_px = np.flatnonzero(obj)
+        ch = chromaticity(rgb[..., :3].reshape(-1, 3)[obj_px])
+        obj_cls = self.colour_class[np.argmin((self.chroma**2).sum(-1) - 2 * ch @ self.chroma.T, axis=1)]
+        obj_z = z.ravel()[obj_px]
+        cls = np.full(z.shape, -1, dtype=np.int32)
+        cls.ravel()[obj_px] = obj_cls
+        im = _Image(P, z, cls, area_px, Pinhole(X_WC, intrinsics))
         rng = np.random.default_rng(seed)
         found: list[SceneObject] = []
-        explained = np.zeros(len(pts), dtype=bool)
         # Large shapes first: their fits then mask their pixels for the smaller ones.
-        order = sorted(range(len(self.names)), key=lambda k: -self.library[self.names[k]].area)
+        order = sorted(range(len(self.names)), key=lambda k: -self.area[k])
         for k in order:
             name = self.names[k]
             shape = self.library[name]
-            colour = cls == self.colour_class[k]
-            top = np.abs(z - shape.height) < 0.004
-            mine = np.flatnonzero(colour & top)
-            others = PointIndex(pts[~colour]) if len(mine) else None
-            for members in _clusters(pts[mine], 0.0025):
-                idx = mine[members]
-                n_est = int(round(w[idx].sum() / shape.area))
-                if w[idx].sum() < cfg.min_fraction * shape.area:
+            area = self.area[k]
+            mine = obj_px[(obj_cls == self.colour_class[k]) & (np.abs(obj_z - shape.height) < cfg.top_band)]
+            labels, members = components(mine, z.shape)
+            for label, idx in enumerate(members, start=1):
+                visible = float(area_px.ravel()[idx].sum())
+                if visible < cfg.min_fraction * area:
                     continue
-                n_est = max(n_est, 1)
+                n_est = max(int(round(visible / area)), 1)
+                pts = im.xy[idx]
+                colour = cls == self.colour_class[k]
                 best = None  # (score of the split, explained mask, objects)
-                for seeds in _seedings(pts[idx], min(n_est, len(idx)), cfg.separation_tries, rng):
-                    mask, objs, spill = explained.copy(), [], 0
-                    for centre in seeds:
-                        pose = self._fit(shape, name, pts, idx, mask, negative_index, others, centre)
-                        if pose is None:
-                            continue
-                        poly = transform(shape.vertices, *pose)
-                        mask |= (_soft_inside(pts, poly, cfg.softness) > 0.5) & colour
-                        if n_est > 1:  # one try alone needs no score
-                            near = negative_index.within(np.asarray(pose[:2]), shape.radius + FIT_MARGIN)
-                            spill += int((_soft_inside(near, poly, cfg.softness) > 0.5).sum())
-                        objs.append(SceneObject(name, *pose))
-                    # Points of the cluster explained, less each table point under a fit as
-                    # _fit weighs it: two fits lying across two bars side by side explain
-                    # most of them but spill onto the table.
-                    score = int(mask[idx].sum()) - NEGATIVE_WEIGHT * spill
+                for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
+                    before = im.explained
+                    fits = []  # (pose, window, pixels inside, lower pixels, score)
+                    # Best first: every seed left is fitted, and the fit that explains most
+                    # (an instance standing clear of the others) is kept; its pixels then
+                    # count against the next ones.
+                    left = list(seeds)
+                    while left:
+                        im.explained = _explain(before, fits, colour)
+                        tries = [
+                            (
+                                self._fit(
+                                    k,
+                                    im,
+                                    labels,
+                                    label,
+                                    c,
+                                    spread=cfg.split_spread if len(seeds) > 2 else 0.0,
+                                ),
+                                i,
+                            )
+                            for i, c in enumerate(left)
+                        ]
+                        tries = [(f, i) for f, i in tries if f is not None]
+                        if not tries:
+                            break
+                        fit, i = max(tries, key=lambda t: t[0].score)
+                        fits.append(fit)
+                        left.pop(i)
+                    # Each instance fitted again with all the others' pixels explained: the
+                    # first fits of a split saw their neighbours' pixels as theirs to take,
+                    # and may lie across two of them.
+                    for _ in range(cfg.refits if len(fits) > 1 else 0):
+                        for i, f in enumerate(fits):
+                            im.explained = _explain(before, fits[:i] + fits[i + 1 :], colour)
+                            centroid = transform(polygon_centroid(shape.vertices)[None], *f.pose)[0]
+                            fit = self._fit(k, im, labels, label, centroid, start=f.pose)
+                            if fit is not None:
+                                fits[i] = fit
+                    im.explained = _explain(before, fits, colour)
+                    spill = sum(f.spill for f in fits)
+                    # Pixels of the component explained, less each lower pixel under a fit as
+                    # _fit weighs it: two fits lying across two bars side by side explain most
+                    # of them but spill onto the table between.
+                    score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * spill
                     if best is None or score > best[0]:
-                        best = (score, mask, objs)
-                explained = best[1]
+                        best = (score, im.explained, [SceneObject(name, *f.pose) for f in fits])
+                    im.explained = before
+                    # Every instance fitted, each covering its own pixels and nothing that rules
+                    # it out: no other split can do better.
+                    if len(fits) == len(seeds) and all(f.clean for f in fits):
+                        break
+                im.explained = best[1]
                 found.extend(best[2])
-        # Object points no fitted polygon explains (a prism knocked onto its side, say, or
+        # Object pixels no fitted polygon explains (a prism knocked onto its side, say, or
         # something not in the library): reported, so nobody calls such a table clear.
-        covered = np.zeros(len(pts), dtype=bool)
+        covered = np.zeros(z.shape, dtype=bool)
         for o in found:
-            poly = transform(self.library[o.shape].vertices, o.x, o.y, o.theta)
-            covered |= _signed_distance(pts, poly) < cfg.wall_margin  # tops and the side walls around them
-        rest = np.flatnonzero(~covered)
-        unknown = [rest[c] for c in _clusters(pts[rest], 0.0025) if w[rest[c]].sum() > cfg.unknown_area]
+            shape = self.library[o.shape]
+            rows, cols = im.window((o.x, o.y), shape.radius + cfg.wall_margin, 0.0)
+            poly = transform(shape.vertices, o.x, o.y, o.theta)
+            # Its top and its side walls:
+            covered[rows, cols] |= near_polygon(P[rows, cols, 0], P[rows, cols, 1], poly, cfg.wall_margin)
+        _, blobs = components(np.flatnonzero(obj & ~covered), z.shape)
+        unknown = [idx for idx in blobs if area_px.ravel()[idx].sum() > cfg.unknown_area]
         found, moved = separate_overlaps(found, self.library)
         n_seen = len(found) + len(unknown)
         found = [o for o in found if within_reach(o.x, o.y, self.reach)]
-        unknown = [idx for idx in unknown if within_reach(*pts[idx].mean(axis=0), self.reach)]
+        unknown = [idx for idx in unknown if within_reach(*im.xy[idx].mean(axis=0), self.reach)]
         scene = Scene(found, self.library, table=tuple(self.table))
         scene.meta["beyond_reach"] = n_seen - len(found) - len(unknown)
         scene.meta["unrecognised_blobs"] = len(unknown)
         # Each blob's outline seen from above (the convex hull of its points, simplified to
         # 1 mm) and the height of its top: enough to plan a grasp of it as a prism.
+        zf = z.ravel()
         scene.meta["unrecognised"] = [
-            {"vertices": outline.round(5).tolist(), "top": round(float(np.percentile(z[idx], 95)), 5)}
+            {"vertices": outline.round(5).tolist(), "top": round(float(np.percentile(zf[idx], 95)), 5)}
             for idx in unknown
-            if (outline := _outline(pts[idx])) is not None
+            if (outline := _outline(im.xy[idx])) is not None
         ]
         scene.meta["overlap_corrections"] = moved
         return scene
 
-    def _fit(self, shape, name, pts, idx, explained, negatives, others, centre):
+    def _fit(self, k: int, im: _Image, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
+        """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
+        ``labels``) near ``centre``: from the pose ``start`` if given, else from the centre at
+        angles over the shape's symmetry (and from centres up to ``spread`` m from it in x
+        and y, for seeds that may lie between two instances). None when fewer than 5 pixels
+        are left to fit."""
         cfg = self.config
+        name = self.names[k]
+        shape = self.library[name]
+        h = shape.height
         r = shape.radius + FIT_MARGIN
-
-        def near(a):
-            return a[np.linalg.norm(a - centre, axis=1) < r]
-
-        pos = near(pts[idx][~explained[idx]])
-        if len(pos) < 5:
+        rows, cols = im.window(centre, r, h)
+        xy = im.P[rows, cols, :2]
+        z = im.z[rows, cols]
+        near = ((xy[..., 0] - centre[0]) ** 2 + (xy[..., 1] - centre[1]) ** 2) < r * r
+        pos = (labels[rows, cols] == label) & ~im.explained[rows, cols] & near
+        if int(pos.sum()) < 5:
             return None
-        neg = np.concatenate([negatives.within(centre, r), others.within(centre, r), near(pts[explained])])
-        allp = np.concatenate([pos, neg])
-        weight = np.concatenate([np.ones(len(pos)), -NEGATIVE_WEIGHT * np.ones(len(neg))])
-        c_body = polygon_centroid(shape.vertices)
+        lower = z < h - cfg.top_band  # nan (no depth, off the table) compares False
+        at_top = np.abs(z - h) < cfg.top_band
+        ruled_out = lower | (
+            at_top & ((im.cls[rows, cols] != self.colour_class[k]) | im.explained[rows, cols])
+        )
+        evidence = np.where(pos, 1.0, np.where(ruled_out, -NEGATIVE_WEIGHT, 0.0))
+        origin = (cols.start, rows.start)
         v0 = shape.vertices
-        e0 = np.roll(v0, -1, axis=0) - v0
-        n0 = np.stack([e0[:, 1], -e0[:, 0]], axis=1) / np.linalg.norm(e0, axis=1, keepdims=True)
-        px, py = allp[:, 0], allp[:, 1]
-
-        def scores(poses):
-            # poses (N, 3) -> (N,) smooth score: inside points of the shape less weighted negatives.
-            c, s_ = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-            # Outward edge normals turn with the pose; offsets are normal . vertex.
-            nx = c * n0[None, :, 0] - s_ * n0[None, :, 1]
-            ny = s_ * n0[None, :, 0] + c * n0[None, :, 1]
-            vx = c * v0[None, :, 0] - s_ * v0[None, :, 1] + poses[:, :1]
-            vy = s_ * v0[None, :, 0] + c * v0[None, :, 1] + poses[:, 1:2]
-            off = nx * vx + ny * vy  # (N, V)
-            # Signed distance to the polygon: the largest edge distance, one edge at a time
-            # (no (N, P, V) temporary: the same numbers at a fraction of the memory traffic).
-            sd = px[None, :] * nx[:, :1] + py[None, :] * ny[:, :1] - off[:, :1]
-            for e in range(1, nx.shape[1]):
-                np.maximum(
-                    sd,
-                    px[None, :] * nx[:, e : e + 1] + py[None, :] * ny[:, e : e + 1] - off[:, e : e + 1],
-                    out=sd,
-                )
-            np.divide(sd, cfg.softness, out=sd)
-            np.clip(sd, -50, 50, out=sd)
-            np.exp(sd, out=sd)
-            sd += 1.0
-            np.reciprocal(sd, out=sd)
-            return sd @ weight
-
+        # A sample per pixel along the longest edge (as seen at the centre).
+        seen = im.cam.project(transform(v0, centre[0], centre[1], 0.0), h)
+        samples = max(int(math.ceil(np.linalg.norm(np.roll(seen, -1, axis=0) - seen, axis=1).max())), 4)
+        score = PolygonScore(evidence, origin, im.cam.plane(h), v0, samples)
+        if start is not None:
+            return self._refine(score, np.array([start], float), rows, cols, origin, v0, h, lower, im)
+        c_body = polygon_centroid(v0)
         period = 2 * math.pi / self.sym[name]
-        ths = np.arange(0.0, period, math.radians(5.0))
-        offs = np.stack([transform(c_body[None], 0.0, 0.0, th)[0] for th in ths])
-        starts = np.column_stack([centre[0] - offs[:, 0], centre[1] - offs[:, 1], ths])
-        s0 = scores(starts)
-        # Refine the best few distinct peaks of the (circular) angle sweep: the best start is
-        # not always in the right basin (a trapezoid seen from its centroid, say).
-        peaks = [k for k in range(len(s0)) if s0[k] >= s0[k - 1] and s0[k] >= s0[(k + 1) % len(s0)]]
-        best, best_s = None, -np.inf
-        for k in sorted(peaks, key=lambda k: -s0[k])[:3]:
-            p, ps = starts[k].copy(), s0[k]
-            step = np.array([0.002, 0.002, math.radians(3.0)])
-            while step[0] > 1e-4:
-                moves = np.concatenate([p + np.diag(step), p - np.diag(step)])
-                ms = scores(moves)
-                j = int(np.argmax(ms))
-                if ms[j] > ps:
-                    p, ps = moves[j], ms[j]
-                else:
-                    step /= 2
-            if ps > best_s:
-                best, best_s = p, ps
+        ths = np.arange(0.0, period, START_ANGLE_STEP)
+        offs = np.column_stack(
+            [
+                np.cos(ths) * c_body[0] - np.sin(ths) * c_body[1],
+                np.sin(ths) * c_body[0] + np.cos(ths) * c_body[1],
+            ]
+        )
+        if not spread:
+            starts = np.column_stack([centre[0] - offs[:, 0], centre[1] - offs[:, 1], ths])
+            s0 = score(starts, max(samples // COARSE, 4))
+            # Refine the best few distinct peaks of the (circular) angle sweep: the best start is
+            # not always in the right basin (a trapezoid seen from its centroid, say).
+            peaks = [j for j in range(len(s0)) if s0[j] >= s0[j - 1] and s0[j] >= s0[(j + 1) % len(s0)]]
+            top = sorted(peaks, key=lambda j: -s0[j])[:REFINED_STARTS]
+            top = top[:1] + [j for j in top[1:] if s0[j] >= PEAK_SHARE * s0[top[0]]]
+        else:
+            # Centres on a grid around the seed, each at every angle; the best angle of each
+            # centre competes, and the best few centres are refined.
+            g = np.linspace(-spread, spread, SPREAD_GRID)
+            gx, gy = (a.ravel() for a in np.meshgrid(g, g))
+            starts = np.stack(
+                [
+                    ((centre[0] + gx)[:, None] - offs[None, :, 0]).ravel(),
+                    ((centre[1] + gy)[:, None] - offs[None, :, 1]).ravel(),
+                    np.broadcast_to(ths, (len(gx), len(ths))).ravel(),
+                ],
+                axis=1,
+            )
+            s0 = score(starts, max(samples // COARSE, 4)).reshape(len(gx), len(ths))
+            j = np.argmax(s0, axis=1)
+            best_centres = np.argsort(-s0[np.arange(len(gx)), j])[:REFINED_STARTS]
+            top = best_centres * len(ths) + j[best_centres]
+        return self._refine(score, starts[top], rows, cols, origin, v0, h, lower, im)
+
+    @staticmethod
+    def _refine(score, starts, rows, cols, origin, v0, h, lower, im):
+        best, value = quadratic_search(score, starts, np.array(FIT_STEP), FIT_TOL)
         best[2] = math.remainder(best[2], 2 * math.pi)
-        return tuple(float(v) for v in best)
+        pose = tuple(float(v) for v in best)
+        poly = im.cam.project(transform(v0, *pose), h)
+        inside = pixels_inside(poly, lower.shape, origin)
+        nxt = np.roll(poly, -1, axis=0)
+        area = 0.5 * abs(float(np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1])))
+        perimeter = float(np.linalg.norm(nxt - poly, axis=1).sum())
+        return _Fit(pose, (rows, cols), inside, lower, value, value >= area - CLEAN_EDGE * perimeter)

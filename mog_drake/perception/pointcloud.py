@@ -1,4 +1,4 @@
-"""Depth to points, colour to chromaticity."""
+"""Depth to points, points to pixels, colour to chromaticity."""
 
 import numpy as np
 
@@ -8,10 +8,48 @@ def backproject(
 ) -> np.ndarray:
     """Depth image (H, W) -> (H, W, 3) points in the world frame (nan where depth is invalid)."""
     h, w = depth.shape
-    u, v = np.meshgrid(np.arange(w), np.arange(h))
     d = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan)
-    pc = np.stack([(u - cx) * d / fx, (v - cy) * d / fy, d], axis=-1)
-    return pc @ X_WC[:3, :3].T + X_WC[:3, 3]
+    R, t = np.asarray(X_WC[:3, :3], float), np.asarray(X_WC[:3, 3], float)
+    # A point is d * (ray in the camera frame): its world coordinates are d * (R ray) + t,
+    # with R ray separable in u and v.
+    ru = (np.arange(w) - cx) / fx
+    rv = (np.arange(h) - cy) / fy
+    out = np.empty((h, w, 3))
+    for i in range(3):
+        out[..., i] = d * (R[i, 0] * ru[None, :] + R[i, 1] * rv[:, None] + R[i, 2]) + t[i]
+    return out
+
+
+class Pinhole:
+    """World points to pixel coordinates (u, v), the pixel centres at integers (as
+    `backproject` reads them). ``X_WC``: the camera's pose; ``intrinsics``: (fx, fy, cx, cy)."""
+
+    def __init__(self, X_WC: np.ndarray, intrinsics):
+        X_WC = np.asarray(X_WC, float)
+        self.R_CW = X_WC[:3, :3].T
+        self.p_CW = -self.R_CW @ X_WC[:3, 3]
+        self._R, self._p = self.R_CW.tolist(), self.p_CW.tolist()
+        self.fx, self.fy, self.cx, self.cy = (float(v) for v in intrinsics)
+
+    def plane(self, z: float) -> np.ndarray:
+        """The 3 x 3 homography from (x, y, 1) on the horizontal plane at height z to
+        homogeneous pixel coordinates."""
+        K = np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+        R = self.R_CW
+        return K @ np.column_stack([R[:, 0], R[:, 1], z * R[:, 2] + self.p_CW])
+
+    def project_point(self, x: float, y: float, z: float) -> tuple[float, float]:
+        """One point's pixel coordinates (plain floats: no array overhead)."""
+        R, p = self._R, self._p
+        c = [R[i][0] * x + R[i][1] * y + R[i][2] * z + p[i] for i in range(3)]
+        return self.fx * c[0] / c[2] + self.cx, self.fy * c[1] / c[2] + self.cy
+
+    def project(self, xy: np.ndarray, z: float) -> np.ndarray:
+        """Points (..., 2) on the horizontal plane at height z -> (..., 2) pixel coordinates."""
+        R = self.R_CW
+        base = z * R[:, 2] + self.p_CW
+        pc = [xy[..., 0] * R[i, 0] + xy[..., 1] * R[i, 1] + base[i] for i in range(3)]
+        return np.stack([self.fx * pc[0] / pc[2] + self.cx, self.fy * pc[1] / pc[2] + self.cy], axis=-1)
 
 
 def chromaticity(rgb: np.ndarray) -> np.ndarray:

@@ -16,7 +16,10 @@ simulation only (tests and scoring; the application never reads them)
     camera.label_image            per-pixel geometry label
     sim.body_poses                ground-truth body poses
 
-World frame = table frame: origin at the centre of the table top, z up.
+World frame = table frame: origin at the centre of the table top, z up. Beside the ports,
+``handles.camera_intrinsics`` is (fx, fy, cx, cy) of the images the camera source gives, pixel
+centres at integer coordinates: the rendered camera's (`rendered_intrinsics`), a RealSense's
+read from the device, or those recorded with replayed frames.
 
 * `mog_drake.station.sim`: the simulated station (`MakeSimStation`).
 * `mog_drake.station.hardware`: the hardware station (`MakeHardwareStation`).
@@ -26,7 +29,14 @@ World frame = table frame: origin at the centre of the table top, z up.
 from mog_drake.scenario import Scenario, check_scenario
 from mog_drake.station.hardware import MakeHardwareStation
 from mog_drake.station.ports import PORTS_IN, PORTS_OUT, SIM_ONLY_PORTS
-from mog_drake.station.sim import MakeSimStation, StationHandles, hold_still, render_still, scene_from_spec
+from mog_drake.station.sim import (
+    MakeSimStation,
+    StationHandles,
+    hold_still,
+    render_still,
+    rendered_intrinsics,
+    scene_from_spec,
+)
 
 __all__ = [
     "PORTS_IN",
@@ -38,6 +48,7 @@ __all__ = [
     "StationHandles",
     "hold_still",
     "render_still",
+    "rendered_intrinsics",
     "scene_from_spec",
 ]
 

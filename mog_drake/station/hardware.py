@@ -17,12 +17,13 @@ from mog_drake.hardware.drivers import (
     UR5Driver,
     robot_health,
 )
-from mog_drake.scenario import ReplaySource
+from mog_drake.scenario import ReplaySource, camera_intrinsics
 
 
 class HardwareHandles:
     def __init__(self, faults, ur5, gripper, camera, scene=None, connections=None, log=None):
         self.faults, self.ur5, self.gripper, self.camera = faults, ur5, gripper, camera
+        self.camera_intrinsics = None  # the camera source's own (fx, fy, cx, cy), once built
         self.scene = scene
         self.plant = None
         self._connections = connections if connections is not None else []
@@ -137,7 +138,12 @@ def _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_i
         ),
     )
     if isinstance(hw.camera, ReplaySource):
-        camera = builder.AddNamedSystem("camera", ReplayCamera(hw.camera.dir, hw.camera.frame_period))
+        camera = builder.AddNamedSystem(
+            "camera",
+            ReplayCamera(
+                hw.camera.dir, hw.camera.frame_period, fallback_intrinsics=camera_intrinsics(scenario.camera)
+            ),
+        )
     else:
         camera = builder.AddNamedSystem(
             "camera", RealSenseCamera(scenario.camera.width, scenario.camera.height, hw.camera.fps)
@@ -151,4 +157,5 @@ def _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_i
     diagram = builder.Build()
     diagram.set_name("hardware_station")
     handles.gripper, handles.camera = grip, camera
+    handles.camera_intrinsics = camera.intrinsics
     return diagram

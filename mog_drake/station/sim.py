@@ -22,7 +22,7 @@ from pydrake.visualization import ApplyVisualizationConfig
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry
 from mog_drake.geometry.gripper import OPEN_WIDTH
-from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, camera_pose
+from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, camera_intrinsics, camera_pose
 from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
 from mog_drake.sim.models import (
     add_bin,
@@ -124,12 +124,27 @@ def scene_from_spec(spec) -> Scene:
 class StationHandles:
     """What tests and the simulation driver may need beyond the ports."""
 
-    def __init__(self, plant, scene_graph, robot, bodies, scene):
+    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics):
+        self.camera_intrinsics = camera_intrinsics
         self.plant = plant
         self.scene_graph = scene_graph
         self.robot = robot
         self.bodies = bodies
         self.scene = scene
+
+
+# Drake's VTK renderer draws pixel (u, v) from the ray through (u + 0.5, v + 0.5) of its
+# CameraInfo model, which puts pixel centres at integer coordinates: rendered tables perceived
+# with CameraInfo's own principal point came out 0.5 pixel (0.6 mm) off along both image axes
+# on every table (tests/test_station.py measures it).
+RENDERED_PIXEL_OFFSET = 0.5
+
+
+def rendered_intrinsics(camera) -> tuple[float, float, float, float]:
+    """(fx, fy, cx, cy) of the simulated camera's images, pixel centres at integer
+    coordinates (as perception and a RealSense read them)."""
+    fx, fy, cx, cy = camera_intrinsics(camera)
+    return fx, fy, cx - RENDERED_PIXEL_OFFSET, cy - RENDERED_PIXEL_OFFSET
 
 
 def hold_still(scenario: Scenario, station, context) -> None:
@@ -242,7 +257,9 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         )
     diagram = builder.Build()
     diagram.set_name("station")
-    return diagram, StationHandles(plant, scene_graph, robot, bodies, scene)
+    return diagram, StationHandles(
+        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera)
+    )
 
 
 def frame_work_cell(meshcat, scenario: Scenario) -> None:

@@ -11,7 +11,7 @@ from pydrake.systems.framework import DiagramBuilder
 from mog_drake.errors import HardwareFault
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.scenario import Scenario, camera_intrinsics, camera_pose
+from mog_drake.scenario import Scenario, camera_pose
 from mog_drake.station import MakeStation
 from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
 from mog_drake.systems.controller import ControllerSystem
@@ -57,7 +57,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
         "perception",
         PerceptionSystem(
             camera_pose(scenario.camera),
-            camera_intrinsics(scenario.camera),
+            handles.camera_intrinsics,
             scenario.perceiver(library),
             period,
         ),

@@ -15,7 +15,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
     the shape's symmetry), and time per image. ``toppled`` bars per table are laid on their
     side before rendering (the pose a knocked-over bar takes)."""
     from mog_drake.perception import pose_errors
-    from mog_drake.scenario import ClutteredScene, Scenario, camera_intrinsics, camera_pose
+    from mog_drake.scenario import ClutteredScene, Scenario, camera_pose
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
     from mog_drake.station import MakeStation, render_still
 
@@ -37,7 +37,7 @@ def bench_perception(tables: int = 5, seed: int = 0, toppled: int = 0) -> list[d
         d, h = MakeStation(sc, scene)
         rgb, depth = render_still(sc, d)
         t = time.perf_counter()
-        seen = sc.perceiver().perceive(rgb, depth, camera_pose(sc.camera), camera_intrinsics(sc.camera))
+        seen = sc.perceiver().perceive(rgb, depth, camera_pose(sc.camera), h.camera_intrinsics)
         dt = time.perf_counter() - t
         errs = pose_errors(seen, h.scene)
         found = [e for e in errs if e["object"] is not None and e["position"] is not None]
