@@ -204,7 +204,9 @@ class Perceiver:
         """rgb (H, W, 3 or 4) uint8, depth (H, W) m, X_WC 4x4 camera pose, intrinsics (fx, fy, cx, cy)."""
         cfg = self.config
         fx, fy, cx, cy = intrinsics
-        depth = np.asarray(depth, float).reshape(rgb.shape[:2])
+        depth = np.asarray(depth).reshape(rgb.shape[:2])
+        if depth.dtype != np.float32:
+            depth = depth.astype(np.float64)
         P = backproject(depth, np.asarray(X_WC, float), fx, fy, cx, cy)
         ok = np.isfinite(P[..., 2]) & _inside(P, self.table)
         for r in self.ignore:
@@ -272,7 +274,8 @@ class Perceiver:
                     # Each instance fitted again with all the others' pixels explained: the
                     # first fits of a split saw their neighbours' pixels as theirs to take,
                     # and may lie across two of them.
-                    for _ in range(cfg.refits if len(fits) > 1 else 0):
+                    # (Not needed when every fit is clean already.)
+                    for _ in range(cfg.refits if len(fits) > 1 and not all(f.clean for f in fits) else 0):
                         for i, f in enumerate(fits):
                             im.explained = _explain(before, fits[:i] + fits[i + 1 :], colour)
                             centroid = transform(polygon_centroid(shape.vertices)[None], *f.pose)[0]

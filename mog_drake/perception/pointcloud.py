@@ -6,17 +6,22 @@ import numpy as np
 def backproject(
     depth: np.ndarray, X_WC: np.ndarray, fx: float, fy: float, cx: float, cy: float
 ) -> np.ndarray:
-    """Depth image (H, W) -> (H, W, 3) points in the world frame (nan where depth is invalid)."""
+    """Depth image (H, W) -> (H, W, 3) points in the world frame (nan where depth is invalid),
+    in the depth image's float type (float32 from a camera: 0.03 um at a metre)."""
     h, w = depth.shape
-    d = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan)
+    dtype = depth.dtype if depth.dtype in (np.float32, np.float64) else np.float64
+    d = np.where(np.isfinite(depth) & (depth > 0), depth, np.nan).astype(dtype, copy=False)
     R, t = np.asarray(X_WC[:3, :3], float), np.asarray(X_WC[:3, 3], float)
     # A point is d * (ray in the camera frame): its world coordinates are d * (R ray) + t,
     # with R ray separable in u and v.
-    ru = (np.arange(w) - cx) / fx
-    rv = (np.arange(h) - cy) / fy
-    out = np.empty((h, w, 3))
+    ru = ((np.arange(w) - cx) / fx).astype(dtype)
+    rv = ((np.arange(h) - cy) / fy).astype(dtype)
+    out = np.empty((h, w, 3), dtype=dtype)
     for i in range(3):
-        out[..., i] = d * (R[i, 0] * ru[None, :] + R[i, 1] * rv[:, None] + R[i, 2]) + t[i]
+        out[..., i] = d * (
+            dtype.type(R[i, 0]) * ru[None, :] + dtype.type(R[i, 1]) * rv[:, None] + dtype.type(R[i, 2])
+        )
+        out[..., i] += dtype.type(t[i])
     return out
 
 
