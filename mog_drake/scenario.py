@@ -32,6 +32,7 @@ from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.systems.controller import ControllerConfig
+from mog_drake.systems.jobs import LATENCY_MODES, LatencyConfig
 from mog_drake.systems.motion import MotionConfig
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
@@ -190,6 +191,9 @@ class Scenario:
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+    # How long perception and planning take in simulated time: each job's measured wall time,
+    # or fixed times per stage (runs comparable across machines).
+    latency: LatencyConfig = field(default_factory=LatencyConfig)
     # The simulated station's Simulator. Its target_realtime_rate stays 0: a real-time run is
     # paced by the wall clock without catch-up (systems.pick.WallClockPacer).
     simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
@@ -390,6 +394,10 @@ def check_scenario(sc: Scenario) -> None:
     for key in ("close_margin", "open_time", "settle_time"):
         _in(getattr(ctl, key), f"controller.{key} (s)", 0, 60, lo_open=False)
     _in(sc.motion.carry_scale, "motion.carry_scale", 0, 1)
+    if sc.latency.mode not in LATENCY_MODES:
+        raise MogError(f"latency.mode must be one of {', '.join(LATENCY_MODES)}, got {sc.latency.mode!r}")
+    for key in ("perception_s", "planning_s"):
+        _in(getattr(sc.latency, key), f"latency.{key}", 0, 600, lo_open=False)
     hw = sc.hardware
     _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
     _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)

@@ -299,6 +299,7 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
+    from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.perception import Perceived
     from mog_drake.systems.planner import PlannerSystem
 
@@ -309,7 +310,10 @@ def test_planner_system_does_not_repeat_its_last_grasp():
             self.asked.append(np.asarray(grasp).copy())
             return GraspResult(True, lifted=list(group))
 
-    system = PlannerSystem(GraspPlanner(LiftsAnything(), PlannerConfig("gp")))
+    # No latency: each decision is visible at the first update after its scene.
+    system = PlannerSystem(
+        GraspPlanner(LiftsAnything(), PlannerConfig("gp")), latency=LatencyConfig("fixed", 0.0, 0.0)
+    )
     ctx = system.CreateDefaultContext()
     port = system.GetInputPort("scene")
     port.FixValue(ctx, AbstractValue.Make(Perceived(1, scene)))
@@ -317,7 +321,7 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     sim.AdvanceTo(0.015)
     first = system.GetOutputPort("decision").Eval(ctx)
     port.FixValue(ctx, AbstractValue.Make(Perceived(2, scene)))  # the world did not change
-    sim.AdvanceTo(0.025)
+    sim.AdvanceTo(0.045)  # planned in the update after the scene, visible in the next
     second = system.GetOutputPort("decision").Eval(ctx)
     assert first.counter == 1 and second.counter == 2 and len(second.recent) == 2
     assert not np.allclose(first.decision.grasp, second.decision.grasp)

@@ -187,14 +187,16 @@ def test_ik_reaches_the_workspace_corners():
             assert np.abs(v).max() <= scale * sc.robot.max_joint_speed * 1.02
 
 
-def _controller_with_fixed_inputs():
-    """A ControllerSystem alone: the arm at home, the jaws at 30 mm, a decision to set.
-    Returns (controller, context, decision input value, simulator)."""
+def _controller_with_fixed_inputs(with_check=False):
+    """A ControllerSystem alone: the arm at home, the jaws at 30 mm, a decision to set, every
+    scene perceived. Returns (controller, context, decision input value, simulator), and the
+    change check's input value if ``with_check`` (else every check says unchanged)."""
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
     from mog_drake.systems.controller import ControllerSystem
     from mog_drake.systems.motion import ArmMotion
+    from mog_drake.systems.perception import Checked, Perceived
     from mog_drake.systems.planner import Decision
 
     sc = Scenario()
@@ -204,7 +206,11 @@ def _controller_with_fixed_inputs():
     c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
     c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
     decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
-    return c, ctx, decision, Simulator(c, ctx)
+    c.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(counter=10**6)))
+    checked = c.GetInputPort("checked").FixValue(ctx, AbstractValue.Make(Checked(counter=-1)))
+    if not with_check:
+        c.GetInputPort("checked").FixValue(ctx, AbstractValue.Make(Checked(counter=2)))  # unchanged
+    return (c, ctx, decision, Simulator(c, ctx)) + ((checked,) if with_check else ())
 
 
 def test_controller_state_machine_with_fixed_inputs():
@@ -222,17 +228,55 @@ def test_controller_state_machine_with_fixed_inputs():
     )
     t = 0.5
     while t < 12.0:
-        t += 0.05
+        t += 0.01
         sim.AdvanceTo(t)
         s = c.state(ctx)
         if not modes or modes[-1] != s.mode:
             modes.append(s.mode)
             grippers.append(c.GetOutputPort("gripper.position").Eval(ctx)[0])
-    assert modes[:7] == ["approach", "close", "lift", "to_bin", "open", "home", "wait"]
+    assert modes[:8] == ["approach", "close", "lift", "to_bin", "open", "home", "check", "wait"]
     assert grippers[modes.index("close")] == 0.0 and grippers[modes.index("home")] == pytest.approx(0.075)
     a = c.state(ctx).attempts[0]
     assert a["group"] == [0, 1] and a["held_width"] == pytest.approx(0.03) and a["end"] > a["start"]
-    assert c.GetOutputPort("request").Eval(ctx)[0] == 2  # asks for the next observation
+    assert c.GetOutputPort("request").Eval(ctx)[0] == 2  # asked for the next image over the bin
+    s = c.state(ctx)
+    assert s.counter == 2 and s.retakes == 0  # unchanged: waits for the decision of that image
+    assert s.robot_time == pytest.approx(a["end"] - a["start"], abs=0.02)
+
+
+def test_a_changed_table_drops_the_decision_and_takes_a_new_image():
+    """The next image is asked for when the jaws open over the bin (this cell's arm hides part
+    of the table until it is nearly home); at the observe pose the controller asks for a check
+    of that image, and when Perception answers that the table changed, the decision of that
+    image is never waited for: a new image is asked for at once."""
+    from pydrake.common.value import AbstractValue
+
+    from mog_drake.planning.picking import PickDecision
+    from mog_drake.systems.perception import Checked
+    from mog_drake.systems.planner import Decision
+
+    c, ctx, decision, sim, checked = _controller_with_fixed_inputs(with_check=True)
+    sim.AdvanceTo(0.5)
+    decision.GetMutableData().set_value(
+        Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0,)), 5)
+    )
+    asked_at = None
+    while c.state(ctx).mode != "check":
+        sim.AdvanceTo(ctx.get_time() + 0.01)
+        if asked_at is None and c.GetOutputPort("request").Eval(ctx)[0] == 2:
+            asked_at = c.state(ctx).mode
+    assert asked_at == "open" and c.GetOutputPort("check").Eval(ctx)[0] == 2
+    # The decision of image 2 is ready, but the table changed: it must not be used.
+    decision.GetMutableData().set_value(
+        Decision(2, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0,)), 5)
+    )
+    sim.AdvanceTo(ctx.get_time() + 0.2)
+    assert c.state(ctx).mode == "check"  # no answer yet: the arm waits at the observe pose
+    c.GetInputPort("checked").FixValue(ctx, AbstractValue.Make(Checked(2, True, 300)))
+    sim.AdvanceTo(ctx.get_time() + 0.05)
+    s = c.state(ctx)
+    assert s.mode == "wait" and s.counter == 3 and s.retakes == 1 and len(s.attempts) == 1
+    assert c.GetOutputPort("request").Eval(ctx)[0] == 3
 
 
 def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():

@@ -26,6 +26,9 @@ COLUMNS = [
     "pph",
     "pph_ci",
     "objects_per_success",
+    "cycle_time_s",
+    "wait_perception_s",
+    "wait_planning_s",
     "paper_success_rate",
     "paper_pph",
 ]
@@ -124,8 +127,14 @@ def summarize(results: list[dict], modes) -> dict:
             ("pph", 1.0),
             ("objects_per_success", 1.0),
             ("attempts", 1.0),
+            ("cycle_time_s", 1.0),
+            ("robot_time_s", 1.0),
+            ("wait_perception_s", 1.0),
+            ("wait_planning_s", 1.0),
         ):
-            mean, ci = mean_ci([r[key] * scale for r in rs if r[key] == r[key]])
+            # Sweeps from before the loop stopped blocking have no waits (their PPH left
+            # perception out and counted planning as idle time).
+            mean, ci = mean_ci([r[key] * scale for r in rs if key in r and r[key] == r[key]])
             row[key], row[key + "_ci"] = mean, ci
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))
@@ -167,6 +176,9 @@ PAIRED = {
     "attempts": 1.0,
     "robot_time_s": 1.0,
     "planning_time_s": 1.0,
+    "cycle_time_s": 1.0,
+    "wait_perception_s": 1.0,
+    "wait_planning_s": 1.0,
 }
 COMPARE_COLUMNS = ["mode", "metric", "tables", "a", "b", "b_minus_a", "ci"]
 
@@ -190,9 +202,13 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
             pairs = [
                 (a[k]["summary"][metric] * scale, b[k]["summary"][metric] * scale)
                 for k in keys
-                if a[k]["summary"][metric] == a[k]["summary"][metric]
+                if metric in a[k]["summary"]
+                and metric in b[k]["summary"]
+                and a[k]["summary"][metric] == a[k]["summary"][metric]
                 and b[k]["summary"][metric] == b[k]["summary"][metric]
             ]
+            if not pairs:  # a metric one of the sweeps did not record
+                continue
             diff, ci = mean_ci([y - x for x, y in pairs])
             rows.append(
                 {

@@ -198,6 +198,29 @@ class Perceiver:
         self.sym = {n: symmetry_order(self.library[n].vertices) for n in names}
         self.area = [self.library[n].area for n in names]
 
+    def changed_pixels(
+        self, before: np.ndarray, after: np.ndarray, X_WC, intrinsics, tol: float = 0.004
+    ) -> int:
+        """How many pixels of the perceived table (its rectangle less the ignored regions, as
+        seen in ``after``) tell that the table changed between two depth images: their depth
+        moved by more than ``tol`` m, or an object (``min_height`` to ``max_height`` above
+        the table) is now where ``before`` saw something higher than any object (the arm
+        over the table) or nothing. A cheap check, not a perception: no fitting."""
+        cfg = self.config
+        X_WC = np.asarray(X_WC, float)
+        after = np.asarray(after, np.float32)
+        before = np.asarray(before, np.float32).reshape(after.shape)
+        Pa = backproject(after, X_WC, *intrinsics)
+        region = np.isfinite(Pa[..., 2]) & _inside(Pa, self.table)
+        for r in self.ignore:
+            region &= ~_inside(Pa, r)
+        zb = backproject(before, X_WC, *intrinsics)[..., 2]
+        hidden = ~(zb < cfg.max_height)  # the arm, or no depth: nothing known there
+        moved = region & ~hidden & (np.abs(before - after) > tol)
+        za = Pa[..., 2]
+        appeared = region & hidden & (za > cfg.min_height) & (za < cfg.max_height)
+        return int(moved.sum() + appeared.sum())
+
     def perceive(
         self, rgb: np.ndarray, depth: np.ndarray, X_WC: np.ndarray, intrinsics, seed: int = 0
     ) -> Scene:

@@ -9,7 +9,7 @@ from pydrake.systems.framework import LeafSystem
 
 from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
-from mog_drake.systems.perception import _Immutable
+from mog_drake.systems.perception import Checked, Perceived, _Immutable
 from mog_drake.systems.planner import Decision
 
 
@@ -19,7 +19,9 @@ class ControllerState(_Immutable):
 
     mode: str = "settle"
     t_mode: float = 0.0
-    counter: int = 0
+    counter: int = 0  # the request whose decision the arm waits for, or executes
+    requested: int = 0  # the newest image requested (counter + 1 once the next one is taken)
+    check: int = 0  # the request whose image the table is checked against at the observe pose
     q_hold: np.ndarray = field(default_factory=lambda: np.zeros(6))
     gripper: float = OPEN_WIDTH
     plan: dict | None = None
@@ -28,6 +30,15 @@ class ControllerState(_Immutable):
     skipped: list = field(default_factory=list)
     unreachable: int = 0  # unreachable grasps in a row
     finished: str = ""
+    # Simulated time (s): the arm moving or the gripper acting; the arm idle waiting for a
+    # scene and for a decision; the first request and the end.
+    robot_time: float = 0.0
+    wait_perception: float = 0.0
+    wait_planning: float = 0.0
+    t_first: float | None = None
+    t_end: float | None = None
+    t_last: float = 0.0
+    retakes: int = 0  # decisions dropped because the table changed after their image
 
 
 @dataclass
@@ -46,7 +57,16 @@ class ControllerConfig:
 class ControllerSystem(LeafSystem):
     """A state machine per attempt: ask for a grasp, move above it, descend, close with the
     force limit, lift, move above the bin, open, return to the observe pose, ask again.
-    ``close_time``: how long the jaws close (see ControllerConfig.close_margin)."""
+    ``close_time``: how long the jaws close (see ControllerConfig.close_margin).
+
+    The next image is asked for as soon as the arm is out of the camera's view after the
+    lift (``arm_view(q, holding)``, see `ArmView`), or at the latest when the jaws open over
+    the bin: then the objects carried are over the bin, which perception ignores, and what
+    the arm still hides of the table is checked at the observe pose. The next decision is
+    planned while the arm drops and returns. At the observe pose the controller asks
+    Perception to check that the table has not changed since that image; if it has (an object
+    dropped in transit, one moved by the lift, one found where the arm hid it), the decision
+    is dropped and a new image taken there."""
 
     MOTIONS = {"approach": "close", "lift": "to_bin", "to_bin": "open", "home": "observe"}
 
@@ -60,6 +80,7 @@ class ControllerSystem(LeafSystem):
         close_time: float = 0.45,
         time_limit: float = 600.0,
         config: ControllerConfig | None = None,
+        arm_view=None,
     ):
         super().__init__()
         cfg = config or ControllerConfig()
@@ -71,15 +92,21 @@ class ControllerSystem(LeafSystem):
         self._max_unreachable = cfg.max_unreachable
         period = cfg.period
         self._limit = time_limit
+        self._arm_view = arm_view
         self._q = self.DeclareVectorInputPort("ur5.position_measured", 6)
         self._g = self.DeclareVectorInputPort("gripper.state_measured", 2)
         self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(Decision()))
+        self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
+        self._checked = self.DeclareAbstractInputPort("checked", AbstractValue.Make(Checked()))
         self._state = self.DeclareAbstractState(AbstractValue.Make(ControllerState(q_hold=self._home.copy())))
         # Outputs read state (and time) only: no feedthrough from the inputs.
         only_state = {self.all_state_ticket(), self.time_ticket()}
         self.DeclareVectorOutputPort("ur5.position", 6, self._out_q, prerequisites_of_calc=only_state)
         self.DeclareVectorOutputPort("gripper.position", 1, self._out_g, prerequisites_of_calc=only_state)
         self.DeclareVectorOutputPort("request", 1, self._out_req, prerequisites_of_calc=only_state)
+        self.DeclareVectorOutputPort(
+            "check", 1, lambda c, o: o.SetFromVector([self.state(c).check]), prerequisites_of_calc=only_state
+        )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
     def state(self, context) -> ControllerState:
@@ -92,12 +119,40 @@ class ControllerSystem(LeafSystem):
         dt = t - s.t_mode
         if s.mode == "done":
             return
-        if t >= self._limit and s.mode in ("observe", "wait", "settle"):
+        # The interval since the last update, by what the arm did in it.
+        step, new.t_last = t - s.t_last, t
+        if s.t_first is not None:
+            if s.mode in self.MOTIONS or s.mode in ("close", "open"):
+                new.robot_time += step
+            elif s.mode in ("wait", "check"):
+                waiting_for = s.check if s.mode == "check" else s.counter
+                if self._scene.Eval(context).counter < waiting_for:
+                    new.wait_perception += step
+                else:
+                    new.wait_planning += step
+        if (
+            s.mode in ("to_bin", "open", "home")
+            and s.requested == s.counter
+            and (s.mode != "to_bin" or self._out_of_view(context, holding=True))
+        ):
+            new.requested = s.counter + 1  # the next image, while the arm drops and returns
+        if t >= self._limit and s.mode in ("observe", "wait", "settle", "check"):
             new.mode, new.finished = "done", "time limit"
         elif s.mode == "settle" and dt >= self._settle:
-            new.mode, new.counter, new.t_mode = "wait", s.counter + 1, t
+            new.mode, new.t_mode, new.t_first = "wait", t, t
+            new.counter = new.requested = s.counter + 1
         elif s.mode == "observe":
-            new.mode, new.counter, new.t_mode = "wait", s.counter + 1, t
+            new.mode, new.t_mode = "wait", t
+            new.counter = new.requested = s.requested + 1
+        elif s.mode == "check":
+            c = self._checked.Eval(context)
+            if c.counter == s.check:
+                new.mode, new.t_mode = "wait", t
+                if c.changed:  # drop its decision: a new image here
+                    new.counter = new.requested = s.check + 1
+                    new.retakes = s.retakes + 1
+                else:
+                    new.counter = s.check
         elif s.mode == "wait":
             d = self._decision.Eval(context)
             if d.counter == s.counter and d.decision is not None:
@@ -148,6 +203,11 @@ class ControllerSystem(LeafSystem):
                 if s.mode == "home":
                     new.attempts[-1] = {**new.attempts[-1], "end": t}
                     new.plan = None
+                    if new.requested == s.counter:  # no image on the way: one here
+                        new.mode = "wait"
+                        new.counter = new.requested = s.counter + 1
+                    else:
+                        new.mode, new.check = "check", new.requested
         elif s.mode == "close" and dt >= self._close_time:
             new.attempts[-1] = {**new.attempts[-1], "held_width": float(self._g.Eval(context)[0])}
             new.mode, new.t_mode = "lift", t
@@ -155,7 +215,14 @@ class ControllerSystem(LeafSystem):
             new.mode, new.t_mode = "home", t
         if s.mode == "to_bin" and new.mode == "open":
             new.gripper = self._open
+        if new.mode == "done" and s.mode != "done":
+            new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
+
+    def _out_of_view(self, context, holding: bool) -> bool:
+        if self._arm_view is None:
+            return False
+        return self._arm_view(self._q.Eval(context), holding)
 
     def _out_q(self, context, output) -> None:
         s = self.state(context)
@@ -169,4 +236,4 @@ class ControllerSystem(LeafSystem):
         output.SetFromVector([self.state(context).gripper])
 
     def _out_req(self, context, output) -> None:
-        output.SetFromVector([self.state(context).counter])
+        output.SetFromVector([self.state(context).requested])

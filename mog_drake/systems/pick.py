@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -18,6 +19,7 @@ from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
 from mog_drake.systems.perception import PerceptionSystem
 from mog_drake.systems.planner import PlannerSystem
+from mog_drake.systems.view import ArmView
 
 
 def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
@@ -44,6 +46,24 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     return GraspPlanner(verifier or DrakeVerifier(vcfg), spec.grasp_planner())
 
 
+def arm_view(scenario: Scenario, intrinsics) -> ArmView:
+    """When the arm hides nothing of the perceived table from the camera (`ArmView`)."""
+    from mog_drake.hardware.drivers import SafetyLimits, SafetyMonitor
+
+    frames = SafetyMonitor(
+        SafetyLimits(), scenario.robot.base, finger_depth=scenario.gripper.finger_height
+    ).frames
+    bx, by, _ = scenario.robot.base
+    return ArmView(
+        frames,
+        [bx, by, 0.0],
+        camera_pose(scenario.camera),
+        intrinsics,
+        scenario.table,
+        scenario.perception_ignore(),
+    )
+
+
 def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
     """Wires the application to a station by port name. Returns (diagram, parts)."""
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
@@ -51,6 +71,9 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
 
     library = handles.scene.library if handles.scene is not None else default_library()
     period = scenario.controller.period
+    # Jobs may hold up an event (to keep simulated latency exact) in simulation and in a dry
+    # run only: on a real arm the servo loop never waits for them.
+    block = not (scenario.hardware.enabled and not scenario.hardware.dry_run)
     builder = DiagramBuilder()
     builder.AddNamedSystem("station", station)
     perception = builder.AddNamedSystem(
@@ -60,10 +83,15 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             handles.camera_intrinsics,
             scenario.perceiver(library),
             period,
+            latency=scenario.latency,
+            block=block,
         ),
     )
     planner_sys = builder.AddNamedSystem(
-        "planner", PlannerSystem(make_planner(scenario, verifier), scenario.planner, period)
+        "planner",
+        PlannerSystem(
+            make_planner(scenario, verifier), scenario.planner, period, latency=scenario.latency, block=block
+        ),
     )
     g = scenario.gripper
     motion = ArmMotion(
@@ -85,6 +113,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             close_time=OPEN_WIDTH / 2 / g.close_speed + scenario.controller.close_margin,
             time_limit=scenario.time_limit,
             config=scenario.controller,
+            arm_view=arm_view(scenario, handles.camera_intrinsics),
         ),
     )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
@@ -93,6 +122,9 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     )
     builder.Connect(controller.GetOutputPort("request"), perception.GetInputPort("request"))
     builder.Connect(perception.GetOutputPort("scene"), planner_sys.GetInputPort("scene"))
+    builder.Connect(perception.GetOutputPort("scene"), controller.GetInputPort("scene"))
+    builder.Connect(perception.GetOutputPort("checked"), controller.GetInputPort("checked"))
+    builder.Connect(controller.GetOutputPort("check"), perception.GetInputPort("check"))
     builder.Connect(planner_sys.GetOutputPort("decision"), controller.GetInputPort("decision"))
     builder.Connect(
         station.GetOutputPort("ur5.position_measured"), controller.GetInputPort("ur5.position_measured")
@@ -122,6 +154,14 @@ class PickRun:
     sim_time: float = 0.0
     wall_time: float = 0.0
     finished: str = ""
+    # Simulated time (s), from the controller: the arm moving or the gripper acting; the arm
+    # idle waiting for a scene, and for a decision; from the first request to the end.
+    robot_time: float = 0.0
+    wait_perception: float = 0.0
+    wait_planning: float = 0.0
+    cycle_time: float = 0.0
+    perception_time: float = 0.0  # wall time of the perception jobs (s)
+    retakes: int = 0  # decisions dropped: the table changed after their image
     # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
     # where "in view" (on the table, inside the perceived region, the camera's image and the
     # arm's reach), "out of view" (on the table, outside them) or "off the table".
@@ -132,7 +172,6 @@ class PickRun:
         n = len(self.attempts)
         succ = [a for a in self.attempts if (a["picked"] or 0) >= 1]
         planning = sum(a["planning_time"] for a in [*self.attempts, *self.skipped])
-        robot_time = self.sim_time
         return {
             "objects": self.objects,
             "attempts": n,
@@ -140,11 +179,14 @@ class PickRun:
             "success_rate": len(succ) / n if n else float("nan"),
             "picked_pct": 100.0 * self.in_bin / self.objects if self.objects else float("nan"),
             "objects_per_success": (sum(a["picked"] for a in succ) / len(succ)) if succ else float("nan"),
-            "pph": 3600.0 * self.in_bin / (robot_time + planning)
-            if robot_time + planning > 0
-            else float("nan"),
-            "robot_time_s": robot_time,
+            "pph": 3600.0 * self.in_bin / self.cycle_time if self.cycle_time > 0 else float("nan"),
+            "cycle_time_s": self.cycle_time,
+            "robot_time_s": self.robot_time,
+            "wait_perception_s": self.wait_perception,
+            "wait_planning_s": self.wait_planning,
             "planning_time_s": planning,
+            "perception_time_s": self.perception_time,
+            "retakes": self.retakes,
             "wall_time_s": self.wall_time,
             "finished": self.finished,
             "left_in_view": sum(w == "in view" for w, _ in self.left.values()),
@@ -210,6 +252,10 @@ def run_pick(
     # A real arm runs at wall pace, whatever the caller asked: its drivers check speed in
     # wall-clock time and would refuse a simulation running flat out.
     realtime = realtime or (hw.enabled and not hw.dry_run)
+    # The Diagram's thread waits for the GIL at most this long while a planning job holds it
+    # (see mog_drake.systems.jobs).
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(0.001)
     try:
         return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
     except RuntimeError:
@@ -217,8 +263,11 @@ def run_pick(
             raise HardwareFault(faults.reason) from None
         raise
     finally:
+        sys.setswitchinterval(switch)
         if hasattr(handles, "shutdown"):
-            handles.shutdown()
+            handles.shutdown()  # the arm first: a running job may take seconds to end
+        parts["perception"].shutdown()
+        parts["planner"].shutdown()
 
 
 def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
@@ -289,6 +338,11 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
         run.shapes = [o.shape for o in handles.scene.objects]
     run.sim_time = ctx.get_time()
     run.wall_time = time.perf_counter() - t0
+    s = controller.state(ctrl_ctx)
+    run.robot_time, run.wait_perception, run.wait_planning = s.robot_time, s.wait_perception, s.wait_planning
+    run.cycle_time = (s.t_end if s.t_end is not None else ctx.get_time()) - (s.t_first or 0.0)
+    run.perception_time = parts["perception"].wall_total(parts["perception"].GetMyContextFromRoot(ctx))
+    run.retakes = s.retakes
     return run
 
 
@@ -299,8 +353,10 @@ SUMMARY_COLUMNS = [
     "picked_pct",
     "objects_per_success",
     "pph",
+    "cycle_time_s",
     "robot_time_s",
-    "planning_time_s",
+    "wait_perception_s",
+    "wait_planning_s",
     "finished",
 ]
 

@@ -4,6 +4,7 @@ for how the three application systems talk)."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,7 +13,8 @@ from pydrake.systems.framework import LeafSystem
 
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.picking import PickDecision, next_pick
-from mog_drake.systems.perception import Perceived, _Immutable
+from mog_drake.systems.jobs import LatencyConfig, Worker
+from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
 
 @dataclass
@@ -24,27 +26,45 @@ class Decision(_Immutable):
     failures: tuple = ()  # groups found to have no grasp (see next_pick)
     unrecognised_grasps: int = 0  # grasps of unrecognised blobs issued in a row
     rng: np.random.Generator | None = None  # the planner's random draws, after this decision
+    t_request: float = 0.0  # simulated time the scene became visible (the planning request)
+    t_visible: float = 0.0  # simulated time this decision became visible
+    wall_time: float = 0.0  # the planning job's wall time (s)
+    previous: Decision | None = None  # the state this one was planned from
 
 
 class PlannerSystem(LeafSystem):
     """scene -> decision: Alg. 1 (mog) or the single-object baseline (sog) once per new scene,
-    as ``spec`` (`PlannerSpec`) says, with ``planner`` (a GraspPlanner). The random draws come
-    from a Generator seeded with ``spec.seed`` that lives in the Context's state."""
+    as ``spec`` (`PlannerSpec`) says, with ``planner`` (a GraspPlanner), as a job on a worker
+    thread whose decision becomes visible after its latency (`mog_drake.systems.jobs`). The
+    random draws come from a Generator seeded with ``spec.seed`` that lives in the Context's
+    state. A retaken scene (the table changed before the last decision was used) is planned
+    from the state before that decision, which was never executed."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
     # Grasps of unrecognised blobs in a row before the run ends on them: each failed one moves
     # the blob, so the planner would otherwise try a new outline until the time limit.
     MAX_UNRECOGNISED_GRASPS = 3
 
-    def __init__(self, planner, spec: PlannerSpec | None = None, period: float = 0.01):
+    def __init__(
+        self,
+        planner,
+        spec: PlannerSpec | None = None,
+        period: float = 0.01,
+        latency: LatencyConfig | None = None,
+        block: bool = True,
+    ):
         super().__init__()
         self._planner = planner
         self._spec = spec or PlannerSpec()
         self._spec.check()
+        self._latency = (latency or LatencyConfig()).of("planning")
+        self._block = block
+        self._worker = Worker("planner")
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
+        self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -53,29 +73,69 @@ class PlannerSystem(LeafSystem):
         )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
+    def shutdown(self) -> None:
+        self._worker.shutdown()
+
     def _update(self, context, state) -> None:
-        p = self._scene.Eval(context)
+        t = context.get_time()
         cur = context.get_abstract_state(self._state).get_value()
-        if p.scene is None or p.counter <= cur.counter:
+        job = context.get_abstract_state(self._job).get_value().job
+        if job is not None and job.visible(t, self._latency, self._block):
+            d, rng = job.result()
+            base = job.info
+            recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
+            if d.status == "grasp":
+                blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
+            else:  # a clear table, or given up: the count stands
+                blob_grasps = base.unrecognised_grasps
+            cur = Decision(
+                job.counter,
+                d,
+                job.n_objects,
+                recent[-self.REMEMBER :],
+                d.failures,
+                blob_grasps,
+                rng,
+                job.t_request,
+                t,
+                job.wall_time(),
+                dataclasses.replace(base, previous=None),  # one step back is all a retake needs
+            )
+            state.get_mutable_abstract_state(self._state).set_value(cur)
+            state.get_mutable_abstract_state(self._job).set_value(_Slot())
+            job = None
+        p = self._scene.Eval(context)
+        last = job.counter if job is not None else cur.counter
+        if job is not None or p.scene is None or p.counter <= last:
             return
-        rng = copy.deepcopy(cur.rng)  # the state's value is never changed in place
-        d = next_pick(
+        # A retake replaces a decision that was never executed: plan from the state before it.
+        base = cur.previous if p.retake and cur.previous is not None else cur
+        rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
+        job = self._worker.submit(
+            self._plan,
             p.scene,
+            rng,
+            base.recent,
+            base.failures if self._spec.remember_failures else None,
+            base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
+            t_request=t,
+            counter=p.counter,
+            info=base,
+        )
+        job.n_objects = len(p.scene)
+        state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
+
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised):
+        d = next_pick(
+            scene,
             self._planner,
             self._spec,
             rng,
-            avoid=cur.recent,
-            failures=cur.failures if self._spec.remember_failures else None,
-            grasp_unrecognised=cur.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
+            avoid=avoid,
+            failures=failures,
+            grasp_unrecognised=grasp_unrecognised,
         )
-        recent = cur.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
-        if d.status == "grasp":
-            blob_grasps = cur.unrecognised_grasps + 1 if d.unrecognised else 0
-        else:  # a clear table, or given up: the count stands
-            blob_grasps = cur.unrecognised_grasps
-        state.get_mutable_abstract_state(self._state).set_value(
-            Decision(p.counter, d, len(p.scene), recent[-self.REMEMBER :], d.failures, blob_grasps, rng)
-        )
+        return d, rng
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())

@@ -1,0 +1,122 @@
+"""Work off the Diagram's thread, and when its result becomes visible in simulated time.
+
+Perception and planning run as jobs on a worker thread each (`Worker`), never inside a
+Diagram event: an event only starts a job or collects a finished one, so the Diagram's step
+time does not depend on how long they compute, and on hardware the servo stream goes on.
+
+Why a thread, not a process: the heavy part of planning is Drake's physics (the verifier's
+``Simulator.AdvanceTo``), and pydrake releases the GIL inside it (measured: a Python thread
+ticking every 1 ms kept ticking, largest gap 2 ms, through a 1.9 s ``AdvanceTo``); perception
+is numpy, which releases it in its loops. A thread shares the planner, its verifier and the
+scene objects without pickling them, and test fakes and patched planners work unchanged.
+What is left holding the GIL (the planner's own Python) yields it every
+``sys.getswitchinterval()``; `run_pick` lowers that to 1 ms while a run lasts, so the
+Diagram's thread waits at most about that long for it.
+
+Simulated time (`LatencyConfig`): a result requested at simulated time t becomes visible at
+t + latency, the latency being the job's measured wall time (``measured``) or a fixed time
+per stage (``fixed``), for runs comparable across machines. In a simulation that runs faster
+than the wall clock, a collecting event waits (on the wall clock) for a job still running
+until the job has run as long as simulated time has advanced since the request: then either
+the job is done, and its result is visible if its latency has passed, or it is not, and its
+latency is longer than the simulated time so far. Visibility is exact to one update period
+whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
+visible at the first update after it is ready and its latency has passed.
+"""
+
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
+
+LATENCY_MODES = ("measured", "fixed")
+
+
+@dataclass
+class LatencyConfig:
+    """How long perception and planning take in simulated time: ``measured`` (each job's own
+    wall time) or ``fixed`` (``perception_s`` and ``planning_s`` for every job)."""
+
+    mode: str = "measured"
+    perception_s: float = 0.3
+    planning_s: float = 2.0
+
+    def of(self, stage: str) -> float | None:
+        """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
+        return getattr(self, f"{stage}_s") if self.mode == "fixed" else None
+
+
+class Job:
+    """One job: its future, when it was requested (simulated time) and submitted (wall
+    time). Held in abstract state, which Drake copies on every update: copies share it."""
+
+    def __init__(self, future: Future, t_request: float, counter: int, info=None):
+        self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
+        self.t_submit = time.perf_counter()
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+    def elapsed(self) -> float:
+        """Wall time since the job was submitted (s)."""
+        return time.perf_counter() - self.t_submit
+
+    def visible(self, t: float, latency: float | None, block: bool) -> bool:
+        """Whether the job's result is visible at simulated time ``t`` (see the module's
+        docstring); ``latency`` None: its measured wall time. A job that raised re-raises
+        here, in the Diagram's thread."""
+        waited = t - self.t_request
+        if latency is not None:
+            if waited < latency - 1e-9:
+                return False
+            if not self.future.done():
+                if not block:
+                    return False
+                self.future.result()
+            return True
+        if not self.future.done():
+            if not block:
+                return False
+            ahead = waited - self.elapsed()  # simulated time past the request, beyond wall time
+            if ahead <= 0:
+                return False
+            try:
+                self.future.result(timeout=ahead)
+            except FutureTimeout:
+                return False
+        return self.wall_time() <= waited + 1e-9
+
+    def wall_time(self) -> float:
+        """The job's latency on the wall clock, request to result (s); it must be done."""
+        return self.future.result()[1]
+
+    def result(self):
+        return self.future.result()[0]
+
+
+class Worker:
+    """One worker thread running one system's jobs in order."""
+
+    def __init__(self, name: str):
+        self._name = name
+        self._pool: ThreadPoolExecutor | None = None
+
+    def submit(self, fn, *args, t_request: float, counter: int, info=None) -> Job:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
+        t0 = time.perf_counter()
+
+        def run():
+            out = fn(*args)
+            return out, time.perf_counter() - t0
+
+        return Job(self._pool.submit(run), t_request, counter, info)
+
+    def shutdown(self) -> None:
+        """Lets a running job finish, then ends the thread (a job cannot be interrupted)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
