@@ -450,6 +450,10 @@ def test_full_pick_real_time_with_a_planner_slowed_by_2_s(replay_dir, monkeypatc
     assert slowed and len(run.attempts) >= 1 and run.attempts[0]["picked"] is None
     servo = np.array([s[1] for s in ur.servo])
     assert len(servo) > 100
+    # Planning ran beside the servo loop: the robot received targets all through each 2-s
+    # stall, not a silence and then a burst (one per servo period: 200 in 2 s).
+    during = [s for s in ur.servo if slowed[0] - 2.0 < s[0] < slowed[0]]
+    assert len(during) > 0.8 * 2.0 / sc.hardware.servo_period
     # The stream never outran the limit in wall-clock time, the 2-s stalls included.
     assert max_wall_excess(ur.servo, 3.5, 3.5 * LIMITS.burst_window + 1e-3) <= 0
     # Motion after the first stall started at wall pace: the arm moved after planning ended.
