@@ -59,10 +59,11 @@ class ControllerSystem(LeafSystem):
     force limit, lift, move above the bin, open, return to the observe pose, ask again.
     ``close_time``: how long the jaws close (see ControllerConfig.close_margin).
 
-    The next image is asked for as soon as the arm is out of the camera's view after the
-    lift (``arm_view(q, holding)``, see `ArmView`), or at the latest when the jaws open over
-    the bin: then the objects carried are over the bin, which perception ignores, and what
-    the arm still hides of the table is checked at the observe pose. The next decision is
+    The next image is asked for as soon as, after the grasp, the arm hides none of the
+    objects left on the table and what it carries hangs above what perception looks at
+    (`ArmView`), or at the latest when the jaws open over the bin: then the objects carried
+    are over the bin, which perception ignores, and what the arm still hides of the table is
+    checked at the observe pose. The next decision is
     planned while the arm drops and returns. At the observe pose the controller asks
     Perception to check that the table has not changed since that image; if it has (an object
     dropped in transit, one moved by the lift, one found where the arm hid it), the decision
@@ -130,12 +131,11 @@ class ControllerSystem(LeafSystem):
                     new.wait_perception += step
                 else:
                     new.wait_planning += step
-        if (
-            s.mode in ("to_bin", "open", "home")
-            and s.requested == s.counter
-            and (s.mode != "to_bin" or self._out_of_view(context, holding=True))
-        ):
-            new.requested = s.counter + 1  # the next image, while the arm drops and returns
+        if s.mode in ("lift", "to_bin", "open", "home") and s.requested == s.counter:
+            if s.mode in ("open", "home") or self._image_now(context, s):
+                new.requested = s.counter + 1  # the next image, while the arm carries and returns
+                if new.attempts:  # when, in the attempt: the moment the next plan could start
+                    new.attempts[-1] = {**new.attempts[-1], "next_image": [s.mode, round(dt, 3)]}
         if t >= self._limit and s.mode in ("observe", "wait", "settle", "check"):
             new.mode, new.finished = "done", "time limit"
         elif s.mode == "settle" and dt >= self._settle:
@@ -219,10 +219,23 @@ class ControllerSystem(LeafSystem):
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
 
-    def _out_of_view(self, context, holding: bool) -> bool:
+    def _image_now(self, context, s: ControllerState) -> bool:
+        """Whether the next image may be taken now, while the arm still carries: it hides
+        nothing of the table, or at least none of the objects left on it (the last scene's,
+        less the group being carried), and what it carries hangs above what perception looks
+        at. Anything else that moved is the observe pose's check's to find."""
         if self._arm_view is None:
             return False
-        return self._arm_view(self._q.Eval(context), holding)
+        q = self._q.Eval(context)
+        if self._arm_view(q, holding=True):
+            return True
+        scene = self._scene.Eval(context).scene
+        if scene is None:
+            return False
+        carried = set(s.attempts[-1]["group"]) if s.attempts else set()
+        prisms = [(scene.polygon(i), scene.shape(i).height) for i in range(len(scene)) if i not in carried]
+        prisms += [(b["vertices"], b["top"]) for b in scene.meta.get("unrecognised", ())]
+        return self._arm_view.clear_of(q, True, prisms)
 
     def _out_q(self, context, output) -> None:
         s = self.state(context)

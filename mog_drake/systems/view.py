@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from mog_drake.geometry.polygon import convex_hull_ccw
 from mog_drake.perception.pointcloud import Pinhole
 
 
@@ -21,7 +22,9 @@ def _inside_margin(poly: np.ndarray, uv: np.ndarray) -> np.ndarray:
 class ArmView:
     """``arm_view(q, holding)``: True when no part of the arm at joint positions ``q`` (nor,
     when ``holding``, what may hang from its fingers) hides any pixel of the perceived table
-    from the camera, outside the regions perception ignores (the bin).
+    from the camera, outside the regions perception ignores (the bin). ``arm_view.clear_of(q,
+    holding, prisms)``: True when it hides none of ``prisms`` (the objects still on the table)
+    and what it holds hangs above the heights perception looks at.
 
     The arm is its kinematic chain from the base's foot to the fingertips, sampled every
     ``step`` m, each sample a ball of ``radius`` m (the UR5's links are at most 0.06 m thick);
@@ -30,7 +33,17 @@ class ArmView:
     intrinsics; ``table``, ``ignore``: the perceived table and its ignored regions."""
 
     def __init__(
-        self, frames, base_xyz, X_WC, intrinsics, table, ignore=(), radius=0.07, hang=0.06, step=0.02
+        self,
+        frames,
+        base_xyz,
+        X_WC,
+        intrinsics,
+        table,
+        ignore=(),
+        radius=0.07,
+        hang=0.06,
+        step=0.02,
+        above=0.08,
     ):
         self._frames = frames
         self._base = np.asarray(base_xyz, float)
@@ -38,7 +51,7 @@ class ArmView:
         self._X_WC = np.asarray(X_WC, float)
         self._table = _image_polygon(self._cam, table)
         self._ignore = [_image_polygon(self._cam, r) for r in ignore]
-        self._radius, self._hang, self._step = radius, hang, step
+        self._radius, self._hang, self._step, self._above = radius, hang, step, above
 
     def points(self, q, holding: bool) -> np.ndarray:
         f = self._frames(np.asarray(q, float))
@@ -54,12 +67,14 @@ class ArmView:
                 pts.append(tip + np.outer(np.linspace(0.0, 1.0, 4), [0.0, 0.0, -self._hang]))
         return np.vstack(pts)
 
-    def __call__(self, q, holding: bool = False) -> bool:
+    def _balls(self, q, holding: bool):
+        """The arm's sample points in the image, and each ball's radius there (pixels); None
+        when a point is at the lens."""
         p = self.points(q, holding)
         R, t = self._X_WC[:3, :3], self._X_WC[:3, 3]
         depth = (p - t) @ R[:, 2]
         if np.any(depth <= 0.05):
-            return False  # at the lens: hides everything
+            return None
         uv = np.stack(
             [
                 self._cam.fx * ((p - t) @ R[:, 0]) / depth + self._cam.cx,
@@ -67,7 +82,39 @@ class ArmView:
             ],
             axis=1,
         )
-        margin = self._radius * self._cam.fx / depth  # a ball's radius in pixels
+        return uv, self._radius * self._cam.fx / depth
+
+    def clear_of(self, q, holding: bool, prisms) -> bool:
+        """``prisms``: (vertices (V, 2) in the table frame, top height) of the objects left on
+        the table. True when the arm (and, ``holding``, what hangs from it, which must then be
+        ``above`` m over the table, higher than perception looks) hides none of them: their
+        top faces and side walls as the camera sees them, the balls' radius around them."""
+        if holding:
+            f = self._frames(np.asarray(q, float))
+            low = min(f[k][2] for k in f if "fingertip" in k) - self._hang
+            if low < self._above:
+                return False
+        balls = self._balls(q, holding)
+        if balls is None:
+            return False
+        uv, margin = balls
+        for verts, top in prisms:
+            seen = np.vstack(
+                [
+                    self._cam.project(np.asarray(verts, float), top),
+                    self._cam.project(np.asarray(verts, float), 0.0),
+                ]
+            )
+            hull = convex_hull_ccw(seen)
+            if np.any(_inside_margin(hull, uv) > -margin):
+                return False
+        return True
+
+    def __call__(self, q, holding: bool = False) -> bool:
+        balls = self._balls(q, holding)
+        if balls is None:
+            return False  # at the lens: hides everything
+        uv, margin = balls
         over = _inside_margin(self._table, uv) > -margin
         for poly in self._ignore:  # wholly over an ignored region hides nothing perceived
             over &= ~(_inside_margin(poly, uv) > margin)
