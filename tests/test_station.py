@@ -591,6 +591,7 @@ def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
     from mog_drake.planning.planner import GraspPlanner
     from mog_drake.planning.protocol import GraspResult
     from mog_drake.scenes import Scene, default_library
+    from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.perception import Perceived
     from mog_drake.systems.planner import PlannerSystem
 
@@ -599,7 +600,7 @@ def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
             return GraspResult(True, lifted=list(group))
 
     blob = {"vertices": [[0.0, 0.0], [0.02, 0.0], [0.02, 0.035], [0.0, 0.035]], "top": 0.03}
-    p = PlannerSystem(GraspPlanner(LiftsAnything()))
+    p = PlannerSystem(GraspPlanner(LiftsAnything()), latency=LatencyConfig("fixed", 0.0, 0.0))  # no latency
     ctx = p.CreateDefaultContext()
     sim = Simulator(p, ctx)
     seen = []

@@ -178,7 +178,9 @@ class PolygonScore:
 
     ``evidence`` (h, w): a window of the image, its pixel (0, 0) at image pixel ``origin``
     (u0, v0). ``plane``: the 3 x 3 homography from (x, y, 1) on the face's plane to
-    homogeneous image coordinates. ``vertices`` (V, 2): the face in its body frame."""
+    homogeneous image coordinates. ``vertices`` (V, 2): the face in its body frame.
+    `PolygonScore.stack` joins the scores of one face in several windows (several instances
+    fitted at once): each pose then names its window (``owner``)."""
 
     def __init__(self, evidence: np.ndarray, origin, plane: np.ndarray, vertices: np.ndarray, samples: int):
         h, w = evidence.shape
@@ -187,48 +189,66 @@ class PolygonScore:
         C = np.zeros((h, w + 1), dtype=np.float32)  # sums of at most a few thousand: exact enough
         np.cumsum(evidence, axis=1, out=C[:, 1:])
         self._C = C.ravel()
-        self._h, self._w = h, w
+        self._off = np.zeros(1, dtype=np.intp)
+        self._h, self._w = np.array([h], dtype=np.intp), np.array([w], dtype=np.intp)
         # The homography to window coordinates, and the column's half-pixel shift (pixel u
         # covers [u - 0.5, u + 0.5]: the running sum at column coordinate u + 0.5) folded in.
         shift = np.array([[1.0, 0.0, 0.5 - origin[0]], [0.0, 1.0, -origin[1]], [0.0, 0.0, 1.0]])
-        self._H = shift @ np.asarray(plane, float)
+        self._H = (shift @ np.asarray(plane, float))[None]
         v = np.asarray(vertices, float)
         self._V = np.vstack([v.T, np.ones(len(v))])  # (3, V)
         self._next = np.roll(np.arange(len(v)), -1)
         self._samples = samples
 
-    def polygons(self, poses: np.ndarray) -> np.ndarray:
+    @classmethod
+    def stack(cls, scores: list["PolygonScore"]) -> "PolygonScore":
+        """One score over the windows of ``scores`` (one face: the same vertices)."""
+        out = cls.__new__(cls)
+        sizes = [len(x._C) for x in scores]
+        out._C = np.concatenate([x._C for x in scores])
+        out._off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        out._h = np.concatenate([x._h for x in scores])
+        out._w = np.concatenate([x._w for x in scores])
+        out._H = np.concatenate([x._H for x in scores])
+        out._V, out._next = scores[0]._V, scores[0]._next
+        out._samples = max(x._samples for x in scores)
+        return out
+
+    def polygons(self, poses: np.ndarray, owner=None) -> np.ndarray:
         """poses (N, 3) -> (N, V, 2) the face's corners in window coordinates (columns shifted
         by half a pixel, as the running sum is read)."""
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        H = self._H
+        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+        H = self._H[np.zeros(len(poses), np.intp) if owner is None else owner]  # (N, 3, 3)
         # H @ [[c, -s, x], [s, c, y], [0, 0, 1]]: each pose's homography from body to window.
         M = np.empty((len(poses), 3, 3))
-        M[:, :, 0] = c[:, None] * H[:, 0] + s[:, None] * H[:, 1]
-        M[:, :, 1] = c[:, None] * H[:, 1] - s[:, None] * H[:, 0]
-        M[:, :, 2] = poses[:, :1] * H[:, 0] + poses[:, 1:2] * H[:, 1] + H[:, 2]
+        M[:, :, 0] = c * H[:, :, 0] + s * H[:, :, 1]
+        M[:, :, 1] = c * H[:, :, 1] - s * H[:, :, 0]
+        M[:, :, 2] = poses[:, :1] * H[:, :, 0] + poses[:, 1:2] * H[:, :, 1] + H[:, :, 2]
         q = M @ self._V  # (N, 3, V)
         return np.stack([q[:, 0] / q[:, 2], q[:, 1] / q[:, 2]], axis=-1)
 
-    def __call__(self, poses: np.ndarray, samples: int | None = None) -> np.ndarray:
+    def __call__(self, poses: np.ndarray, samples: int | None = None, owner=None) -> np.ndarray:
         """poses (N, 3) -> (N,) scores; ``samples`` per edge (default: the score's own; fewer
-        for a coarse look at many poses)."""
+        for a coarse look at many poses); ``owner`` (N,): each pose's window (default: the
+        first)."""
         samples = samples or self._samples
-        p = self.polygons(poses).astype(np.float32)
+        owner = np.zeros(len(poses), np.intp) if owner is None else np.asarray(owner, np.intp)
+        p = self.polygons(poses, owner).astype(np.float32)
         d = p[:, self._next] - p
         t = ((np.arange(samples) + 0.5) / samples).astype(np.float32)
         x = p[..., None, 0] + t * d[..., None, 0]
         y = p[..., None, 1] + t * d[..., None, 1]
-        np.clip(x, 0.0, self._w - 1e-3, out=x)
-        np.clip(y, 0.0, self._h - 1 - 1e-3, out=y)
+        w = self._w[owner][:, None, None]
+        np.clip(x, 0.0, (w - 1e-3).astype(np.float32), out=x)
+        np.clip(y, 0.0, (self._h[owner][:, None, None] - 1 - 1e-3).astype(np.float32), out=y)
         ix, iy = x.astype(np.intp), y.astype(np.intp)
         x -= ix
         y -= iy
-        k = iy * (self._w + 1) + ix
+        k = self._off[owner][:, None, None] + iy * (w + 1) + ix
         C = self._C
         c0 = C[k]
         top = c0 + x * (C[k + 1] - c0)
-        k += self._w + 1
+        k += w + 1
         c0 = C[k]
         top += y * (c0 + x * (C[k + 1] - c0) - top)
         s = np.einsum("nvm,nv->n", top, d[..., 1]) / samples
@@ -270,67 +290,58 @@ _QUADRATIC = np.linalg.pinv(
 )
 
 
-def quadratic_search(
-    score, starts: np.ndarray, step: np.ndarray, tol: float, max_rounds: int = 12
-) -> tuple[np.ndarray, float]:
-    """Maximises ``score`` (poses (N, 3) -> (N,)) near each start: each round scores a
-    stencil of ``step`` around each pose (`_STENCIL`) and fits a quadratic to it. Where the
+def quadratic_search(score, starts: np.ndarray, step, tol: float, max_rounds: int = 12):
+    """Maximises ``score`` (poses (N, 3), owner= (N,) -> (N,)) for F fits at once, near each
+    of their starts (``starts`` (F, S, 3); or (S, 3) for one fit, owner 0). Each round scores
+    a stencil of ``step`` around each pose (`_STENCIL`) and fits a quadratic to it. Where the
     quadratic has a maximum, the pose moves there (at most one step along each coordinate),
-    else to the stencil's best pose. The step is halved after a round whose move stayed inside
-    the stencil, and kept while the pose is still travelling; the search ends when the first
-    step is below ``tol`` (or after ``max_rounds``). After the first round only the start
-    whose stencil scored best goes on. Returns the best pose scored and its score."""
-    p = np.array(starts, float)
-    h = np.asarray(step, float)
-    best_p, best_s = p[0], -np.inf
+    else to the stencil's best pose. A fit's step is halved after a round whose move stayed
+    inside the stencil, and kept while the pose is still travelling; its search ends when its
+    first step is below ``tol`` (or after ``max_rounds``). After the first round each fit goes
+    on from its start whose stencil scored best. Returns the best poses scored (F, 3) and
+    their scores (F,); for one fit, one pose and its score."""
+    single = np.ndim(starts) == 2
+    P = np.array(starts, float)[None] if single else np.array(starts, float)
+    F, S = P.shape[:2]
+    n = len(_STENCIL)
+    h = np.tile(np.asarray(step, float), (F, 1))
+    best_p, best_s = P[:, 0].copy(), np.full(F, -np.inf)
+    fits = np.arange(F)
+    # Round 0: every start of every fit.
+    poses = P[:, :, None, :] + _STENCIL[None, None] * h[:, None, None, :]  # (F, S, n, 3)
+    s = score(poses.reshape(-1, 3), owner=np.repeat(fits, S * n)).reshape(F, S, n)
+    k = np.argmax(s.max(axis=2), axis=1)  # each fit's best start
+    p, s = P[fits, k], s[fits, k]  # (F, 3), (F, n)
+    live = fits
     for r in range(max_rounds):
-        if h[0] < tol:
-            break
-        poses = p[:, None, :] + _STENCIL[None] * h  # (K, 19, 3)
-        s = score(poses.reshape(-1, 3)).reshape(len(p), len(_STENCIL))
+        if r > 0:
+            live = fits[h[:, 0] >= tol]
+            if len(live) == 0:
+                break
+            poses = p[live, None, :] + _STENCIL[None] * h[live, None, :]  # (L, n, 3)
+            s = score(poses.reshape(-1, 3), owner=np.repeat(live, n)).reshape(len(live), n)
+        else:
+            poses = p[:, None, :] + _STENCIL[None] * h[:, None, :]
         j = np.argmax(s, axis=1)
-        k = int(np.argmax(s[np.arange(len(p)), j]))
-        if s[k, j[k]] > best_s:
-            best_p, best_s = poses[k, j[k]].copy(), float(s[k, j[k]])
-        if r == 0:  # go on from the best start only
-            p, s, j = p[k : k + 1], s[k], j[k]
-        else:
-            s, j = s[0], j[0]
-        c = _QUADRATIC @ s
-        H = np.array([[2 * c[4], c[7], c[8]], [c[7], 2 * c[5], c[9]], [c[8], c[9], 2 * c[6]]])
-        if np.all(np.linalg.eigvalsh(H) < 0):  # a maximum: Newton's step, clipped
-            move = np.clip(np.linalg.solve(H, -c[1:4]), -1.0, 1.0)
-        else:
-            move = _STENCIL[j]
-        p = p + move * h
-        if np.max(np.abs(move)) < 0.999:  # arrived: look closer
-            h = h / 2
-    s = score(p)
-    if s[0] > best_s:
-        best_p, best_s = p[0], float(s[0])
+        top = s[np.arange(len(live)), j]
+        up = top > best_s[live]
+        best_p[live[up]], best_s[live[up]] = poses[np.flatnonzero(up), j[up]], top[up]
+        c = s @ _QUADRATIC.T  # (L, 10)
+        H = np.empty((len(live), 3, 3))
+        H[:, 0, 0], H[:, 1, 1], H[:, 2, 2] = 2 * c[:, 4], 2 * c[:, 5], 2 * c[:, 6]
+        H[:, 0, 1] = H[:, 1, 0] = c[:, 7]
+        H[:, 0, 2] = H[:, 2, 0] = c[:, 8]
+        H[:, 1, 2] = H[:, 2, 1] = c[:, 9]
+        move = _STENCIL[j].copy()
+        peak = np.all(np.linalg.eigvalsh(H) < 0, axis=1)  # a maximum: Newton's step, clipped
+        if peak.any():
+            move[peak] = np.clip(np.linalg.solve(H[peak], -c[peak, 1:4, None])[..., 0], -1.0, 1.0)
+        p[live] += move * h[live]
+        arrived = np.max(np.abs(move), axis=1) < 0.999  # arrived: look closer
+        h[live[arrived]] /= 2
+    s = score(p, owner=fits)
+    up = s > best_s
+    best_p[up], best_s[up] = p[up], s[up]
+    if single:
+        return best_p[0], float(best_s[0])
     return best_p, best_s
-
-
-def pattern_search(score, starts: np.ndarray, step: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
-    """Maximises ``score`` (poses (N, 3) -> (N,)) from each start at once: each pose tries a
-    step either way along each coordinate, takes the best move that improves it, and halves
-    its steps when none does, until its first step is below ``tol``. Returns the best pose
-    and its score."""
-    p = np.array(starts, float)
-    s = score(p)
-    steps = np.tile(np.asarray(step, float), (len(p), 1))
-    eye = np.vstack([np.eye(3), -np.eye(3)])
-    while True:
-        live = np.flatnonzero(steps[:, 0] >= tol)
-        if len(live) == 0:
-            break
-        moves = p[live, None, :] + eye[None] * steps[live, None, :]  # (L, 6, 3)
-        ms = score(moves.reshape(-1, 3)).reshape(len(live), 6)
-        j = np.argmax(ms, axis=1)
-        better = ms[np.arange(len(live)), j] > s[live]
-        up = live[better]
-        p[up] = moves[better, j[better]]
-        s[up] = ms[better, j[better]]
-        steps[live[~better]] /= 2
-    k = int(np.argmax(s))
-    return p[k], float(s[k])

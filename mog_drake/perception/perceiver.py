@@ -101,6 +101,19 @@ CLEAN_EDGE = 0.6
 
 
 @dataclass
+class _Window:
+    """Where one instance is fitted: its score over a window of the image (rows, cols), the
+    window's origin pixel, which of its pixels are lower than the shape's top, and the seed."""
+
+    score: PolygonScore
+    rows: slice
+    cols: slice
+    origin: tuple
+    lower: np.ndarray
+    centre: np.ndarray
+
+
+@dataclass
 class _Fit:
     """One fitted instance: its pose, the window of the image it was fitted in, which pixels
     of the window lie inside it and which are lower than its top, its score, and whether it
@@ -257,13 +270,21 @@ class Perceiver:
             area = self.area[k]
             mine = obj_px[(obj_cls == self.colour_class[k]) & (np.abs(obj_z - shape.height) < cfg.top_band)]
             labels, members = components(mine, z.shape)
+            colour = cls == self.colour_class[k]
+            lone, several = [], []
             for label, idx in enumerate(members, start=1):
                 visible = float(area_px.ravel()[idx].sum())
-                if visible < cfg.min_fraction * area:
-                    continue
-                n_est = max(int(round(visible / area)), 1)
+                if visible >= cfg.min_fraction * area:
+                    n_est = max(int(round(visible / area)), 1)
+                    (lone if n_est == 1 else several).append((label, idx, n_est))
+            # Lone instances first, all at once: one batch of poses per search step.
+            wins = [self._window(k, im, labels, label, im.xy[idx].mean(axis=0)) for label, idx, _ in lone]
+            wins = [w for w in wins if w is not None]
+            for f in self._fit_windows(k, im, wins) if wins else ():
+                im.explained[f.window] |= f.inside & colour[f.window]
+                found.append(SceneObject(name, *f.pose))
+            for label, idx, n_est in several:
                 pts = im.xy[idx]
-                colour = cls == self.colour_class[k]
                 best = None  # (score of the split, explained mask, objects)
                 for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
                     before = im.explained
@@ -349,15 +370,11 @@ class Perceiver:
         scene.meta["overlap_corrections"] = moved
         return scene
 
-    def _fit(self, k: int, im: _Image, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
-        """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
-        ``labels``) near ``centre``: from the pose ``start`` if given, else from the centre at
-        angles over the shape's symmetry (and from centres up to ``spread`` m from it in x
-        and y, for seeds that may lie between two instances). None when fewer than 5 pixels
-        are left to fit."""
+    def _window(self, k: int, im: _Image, labels: np.ndarray, label: int, centre):
+        """The evidence around ``centre`` for shape ``k`` and its score (`_Window`), or None
+        when fewer than 5 unexplained pixels of component ``label`` lie near it."""
         cfg = self.config
-        name = self.names[k]
-        shape = self.library[name]
+        shape = self.library[self.names[k]]
         h = shape.height
         r = shape.radius + FIT_MARGIN
         rows, cols = im.window(centre, r, h)
@@ -376,55 +393,89 @@ class Perceiver:
         origin = (cols.start, rows.start)
         v0 = shape.vertices
         # A sample per pixel along the longest edge (as seen at the centre).
-        seen = im.cam.project(transform(v0, centre[0], centre[1], 0.0), h)
-        samples = max(int(math.ceil(np.linalg.norm(np.roll(seen, -1, axis=0) - seen, axis=1).max())), 4)
-        score = PolygonScore(evidence, origin, im.cam.plane(h), v0, samples)
-        if start is not None:
-            return self._refine(score, np.array([start], float), rows, cols, origin, v0, h, lower, im)
-        c_body = polygon_centroid(v0)
-        period = 2 * math.pi / self.sym[name]
-        ths = np.arange(0.0, period, START_ANGLE_STEP)
-        offs = np.column_stack(
-            [
-                np.cos(ths) * c_body[0] - np.sin(ths) * c_body[1],
-                np.sin(ths) * c_body[0] + np.cos(ths) * c_body[1],
-            ]
+        u, v = zip(*(im.cam.project_point(x, y, h) for x, y in transform(v0, centre[0], centre[1], 0.0)))
+        samples = max(
+            int(math.ceil(max(math.hypot(u[i - 1] - u[i], v[i - 1] - v[i]) for i in range(len(u))))), 4
         )
-        if not spread:
-            starts = np.column_stack([centre[0] - offs[:, 0], centre[1] - offs[:, 1], ths])
-            s0 = score(starts, max(samples // COARSE, 4))
-            # Refine the best few distinct peaks of the (circular) angle sweep: the best start is
-            # not always in the right basin (a trapezoid seen from its centroid, say).
-            peaks = [j for j in range(len(s0)) if s0[j] >= s0[j - 1] and s0[j] >= s0[(j + 1) % len(s0)]]
-            top = sorted(peaks, key=lambda j: -s0[j])[:REFINED_STARTS]
-            top = top[:1] + [j for j in top[1:] if s0[j] >= PEAK_SHARE * s0[top[0]]]
+        score = PolygonScore(evidence, origin, im.cam.plane(h), v0, samples)
+        return _Window(score, rows, cols, origin, lower, np.asarray(centre, float))
+
+    def _fit(self, k: int, im: _Image, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
+        """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
+        ``labels``) near ``centre``: from the pose ``start`` if given, else from the centre at
+        angles over the shape's symmetry (and from centres up to ``spread`` m from it in x
+        and y, for seeds that may lie between two instances). None when fewer than 5 pixels
+        are left to fit."""
+        win = self._window(k, im, labels, label, centre)
+        if win is None:
+            return None
+        return self._fit_windows(k, im, [win], start=start, spread=spread)[0]
+
+    def _fit_windows(self, k: int, im: _Image, wins: list, start=None, spread=0.0) -> list:
+        """Fits shape ``k`` in each window at once (one batch of poses per step, the windows
+        told apart by owner): lone instances of one shape cost one search, not one each."""
+        name = self.names[k]
+        v0 = self.library[name].vertices
+        score = wins[0].score if len(wins) == 1 else PolygonScore.stack([w.score for w in wins])
+        coarse = max(score._samples // COARSE, 4)
+        if start is not None:
+            starts = np.array([[start]], float)
         else:
-            # Centres on a grid around the seed, each at every angle; the best angle of each
-            # centre competes, and the best few centres are refined.
-            g = np.linspace(-spread, spread, SPREAD_GRID)
+            c_body = polygon_centroid(v0)
+            ths = np.arange(0.0, 2 * math.pi / self.sym[name], START_ANGLE_STEP)
+            offs = np.column_stack(
+                [
+                    np.cos(ths) * c_body[0] - np.sin(ths) * c_body[1],
+                    np.sin(ths) * c_body[0] + np.cos(ths) * c_body[1],
+                ]
+            )
+            # Centres: each window's own, or a grid around it (spread), each at every angle.
+            g = np.linspace(-spread, spread, SPREAD_GRID) if spread else np.zeros(1)
             gx, gy = (a.ravel() for a in np.meshgrid(g, g))
+            centres = np.stack([w.centre for w in wins])[:, None, :] + np.stack([gx, gy], axis=1)[None]
+            C, A = centres.shape[1], len(ths)
             starts = np.stack(
                 [
-                    ((centre[0] + gx)[:, None] - offs[None, :, 0]).ravel(),
-                    ((centre[1] + gy)[:, None] - offs[None, :, 1]).ravel(),
-                    np.broadcast_to(ths, (len(gx), len(ths))).ravel(),
+                    centres[:, :, None, 0] - offs[None, None, :, 0],
+                    centres[:, :, None, 1] - offs[None, None, :, 1],
+                    np.broadcast_to(ths, (len(wins), C, A)),
                 ],
-                axis=1,
-            )
-            s0 = score(starts, max(samples // COARSE, 4)).reshape(len(gx), len(ths))
-            j = np.argmax(s0, axis=1)
-            best_centres = np.argsort(-s0[np.arange(len(gx)), j])[:REFINED_STARTS]
-            top = best_centres * len(ths) + j[best_centres]
-        return self._refine(score, starts[top], rows, cols, origin, v0, h, lower, im)
+                axis=-1,
+            )  # (F, C, A, 3)
+            owner = np.repeat(np.arange(len(wins)), C * A)
+            s0 = score(starts.reshape(-1, 3), coarse, owner=owner).reshape(len(wins), C, A)
+            picked = []
+            for f in range(len(wins)):
+                if C == 1:
+                    # The best few distinct peaks of the (circular) angle sweep: the best start
+                    # is not always in the right basin (a trapezoid seen from its centroid).
+                    sf = s0[f, 0]
+                    peaks = [j for j in range(A) if sf[j] >= sf[j - 1] and sf[j] >= sf[(j + 1) % A]]
+                    top = sorted(peaks, key=lambda j: -sf[j])[:REFINED_STARTS]
+                    top = top[:1] + [j for j in top[1:] if sf[j] >= PEAK_SHARE * sf[top[0]]]
+                    chosen = [starts[f, 0, j] for j in top]
+                else:
+                    # The best angle of each centre competes; the best few centres go on.
+                    j = np.argmax(s0[f], axis=1)
+                    best = np.argsort(-s0[f, np.arange(C), j])[:REFINED_STARTS]
+                    chosen = [starts[f, c, j[c]] for c in best]
+                picked.append(chosen + [chosen[0]] * (REFINED_STARTS - len(chosen)))
+            starts = np.array(picked)  # (F, REFINED_STARTS, 3)
+        poses, values = quadratic_search(score, starts, np.array(FIT_STEP), FIT_TOL)
+        return [
+            self._finish(w, v0, self.library[name].height, pose, value, im)
+            for w, pose, value in zip(wins, poses, values)
+        ]
 
     @staticmethod
-    def _refine(score, starts, rows, cols, origin, v0, h, lower, im):
-        best, value = quadratic_search(score, starts, np.array(FIT_STEP), FIT_TOL)
+    def _finish(win, v0, h, best, value, im) -> _Fit:
+        best = np.array(best, float)
         best[2] = math.remainder(best[2], 2 * math.pi)
         pose = tuple(float(v) for v in best)
         poly = im.cam.project(transform(v0, *pose), h)
-        inside = pixels_inside(poly, lower.shape, origin)
+        inside = pixels_inside(poly, win.lower.shape, win.origin)
         nxt = np.roll(poly, -1, axis=0)
         area = 0.5 * abs(float(np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1])))
         perimeter = float(np.linalg.norm(nxt - poly, axis=1).sum())
-        return _Fit(pose, (rows, cols), inside, lower, value, value >= area - CLEAN_EDGE * perimeter)
+        clean = float(value) >= area - CLEAN_EDGE * perimeter
+        return _Fit(pose, (win.rows, win.cols), inside, win.lower, float(value), clean)
