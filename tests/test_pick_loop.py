@@ -80,7 +80,7 @@ def test_a_planner_slowed_by_2_s_does_not_delay_the_controllers_updates(tmp_path
 
 
 def test_results_become_visible_only_after_their_latency(tmp_path):
-    """Fixed latencies: a scene 0.3 s after its request, a decision 2.0 s after its scene (to
+    """Fixed latencies: a scene 0.3 s after its image, a decision 2.0 s after its scene (to
     the controller's period), and the arm idle for both before the first grasp."""
     latency = LatencyConfig("fixed", perception_s=0.3, planning_s=2.0)
     sc, d, parts, sim = _diagram(tmp_path, latency)
@@ -104,8 +104,9 @@ def test_results_become_visible_only_after_their_latency(tmp_path):
     assert dec.t_request >= scene.t_visible - 1e-9
     assert dec.t_visible - dec.t_request == pytest.approx(2.0, abs=period + 1e-9)
     s = c.state(c.GetMyContextFromRoot(ctx))
-    # Each hand-over (scene to planner, decision to controller) takes up to one period.
-    assert s.wait_perception == pytest.approx(0.3, abs=3 * period)
+    # Each hand-over (scene to planner, decision to controller) takes up to one period; the
+    # first image waits 0.1 s more, for a second frame that shows the table at rest.
+    assert s.wait_perception == pytest.approx(0.1 + 0.3, abs=3 * period)
     assert s.wait_planning == pytest.approx(2.0, abs=3 * period)
     assert s.attempts and s.attempts[0]["start"] >= dec.t_visible - 1e-9
 
@@ -189,3 +190,30 @@ def test_arm_view_lets_the_next_image_be_taken_only_when_the_arm_hides_no_object
     assert view.clear_of(high, False, prisms(far))
     assert view.clear_of(high, True, prisms(far))  # what it carries hangs high enough
     assert not view.clear_of(low, True, prisms(far))  # still at the grasp: it would be seen
+
+
+def test_the_change_check_sees_moved_and_uncovered_objects_not_a_millimetre(tmp_path):
+    """Perceiver.changed_pixels between two depth images: the same table gives 0; a hexagon
+    moved 1 mm gives 0 (its outline shifts by a pixel: no new plan for that); moved 6 mm,
+    hundreds; an object found where the first image saw the arm over the table counts too."""
+    from mog_drake.scenario import camera_pose
+    from mog_drake.station import MakeStation, render_still
+
+    def depth_of(x):
+        scene = make_scene([("large_hexagon", x, 0.05, 0.3), ("blue_quad", -0.1, -0.1, 0.0)])
+        scene.save(tmp_path / "t.yaml")
+        sc = Scenario(scene=SceneFile(file=str(tmp_path / "t.yaml")))
+        d, h = MakeStation(sc)
+        return sc, h, np.array(render_still(sc, d)[1])
+
+    sc, h, d0 = depth_of(0.05)
+    perceiver = sc.perceiver()
+    args = (camera_pose(sc.camera), h.camera_intrinsics)
+    assert perceiver.changed_pixels(d0, d0.copy(), *args) == 0
+    assert perceiver.changed_pixels(d0, depth_of(0.051)[2], *args) == 0
+    assert perceiver.changed_pixels(d0, depth_of(0.056)[2], *args) > 100
+    armed = d0.copy()
+    rows, cols = np.nonzero(np.abs(d0 - 0.77) < 0.002)  # the hexagon's top (0.03 m high)
+    armed[rows, cols] = 0.3  # something 0.5 m above the table hid it
+    assert perceiver.changed_pixels(armed, d0, *args) > 100
+    assert perceiver.changed_pixels(armed, d0, *args, still=True) == 0  # not a motion: unknown

@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from mog_drake.errors import MogError
 from mog_drake.geometry.polygon import polygon_centroid, transform
@@ -76,6 +77,20 @@ def within_reach(x: float, y: float, reach) -> bool:
         return True
     cx, cy, r = reach
     return math.hypot(x - cx, y - cy) <= r
+
+
+def _flat(depth: np.ndarray, step: float) -> np.ndarray:
+    """Pixels whose depth differs from each 4-neighbour's by less than ``step`` (tops and the
+    table, not side walls nor edges)."""
+    out = np.isfinite(depth)
+    for axis in (0, 1):
+        d = np.abs(np.diff(depth, axis=axis)) < step  # nan compares False
+        lo = [slice(None)] * 2
+        hi = [slice(None)] * 2
+        lo[axis], hi[axis] = slice(0, -1), slice(1, None)
+        out[tuple(lo)] &= d
+        out[tuple(hi)] &= d
+    return out
 
 
 def _inside(P: np.ndarray, rect) -> np.ndarray:
@@ -212,13 +227,24 @@ class Perceiver:
         self.area = [self.library[n].area for n in names]
 
     def changed_pixels(
-        self, before: np.ndarray, after: np.ndarray, X_WC, intrinsics, tol: float = 0.004
+        self,
+        before: np.ndarray,
+        after: np.ndarray,
+        X_WC,
+        intrinsics,
+        tol: float = 0.004,
+        settle_px: int = 2,
+        still: bool = False,
     ) -> int:
         """How many pixels of the perceived table (its rectangle less the ignored regions, as
         seen in ``after``) tell that the table changed between two depth images: their depth
         moved by more than ``tol`` m, or an object (``min_height`` to ``max_height`` above
         the table) is now where ``before`` saw something higher than any object (the arm
-        over the table) or nothing. A cheap check, not a perception: no fitting."""
+        over the table) or nothing; in regions at least ``settle_px`` pixels wide every way
+        (an object moved by about that many pixels, 3.7 mm at the defaults, or more). A cheap
+        check, not a perception: no fitting. ``still``: whether what both images see of the
+        table is at rest (two frames a moment apart while the arm may still be in view):
+        pixels where either image sees the arm count for nothing."""
         cfg = self.config
         X_WC = np.asarray(X_WC, float)
         after = np.asarray(after, np.float32)
@@ -229,10 +255,21 @@ class Perceiver:
             region &= ~_inside(Pa, r)
         zb = backproject(before, X_WC, *intrinsics)[..., 2]
         hidden = ~(zb < cfg.max_height)  # the arm, or no depth: nothing known there
-        moved = region & ~hidden & (np.abs(before - after) > tol)
         za = Pa[..., 2]
-        appeared = region & hidden & (za > cfg.min_height) & (za < cfg.max_height)
-        return int(moved.sum() + appeared.sum())
+        if still:
+            hidden |= ~(za < cfg.max_height)
+        # Side walls count for nothing: seen edge-on, their pixels change depth with a tilt of
+        # a degree or a rocking object (on rendered tables, the same wall moved by a pixel or
+        # two with its object at rest); tops and the table change only when something moves.
+        flat = _flat(before, tol) & _flat(after, tol)
+        moved = region & ~hidden & flat & (np.abs(before - after) > tol)
+        appeared = region & hidden & (za > cfg.min_height) & (za < cfg.max_height) & (not still)
+        # Strips narrower than `settle_px` pixels go: an object that slid a fraction of a
+        # millimetre shifts its outline by a pixel, which is no change worth a new plan.
+        changed = moved | appeared
+        if settle_px:
+            changed = ndimage.binary_opening(changed, structure=np.ones((settle_px, settle_px), bool))
+        return int(changed.sum())
 
     def perceive(
         self, rgb: np.ndarray, depth: np.ndarray, X_WC: np.ndarray, intrinsics, seed: int = 0

@@ -68,8 +68,10 @@ class PerceptionSystem(LeafSystem):
     """camera.rgb_image, camera.depth_image, request, check -> scene (`Perceived`), checked
     (`Checked`).
 
-    A new ``request`` counter starts a perception job on a worker thread (`Worker`) with the
-    images of that moment; the job's scene becomes visible after its latency (`LatencyConfig`).
+    A new ``request`` counter starts a perception job on a worker thread (`Worker`) once the
+    table is at rest (two frames ``still_dt`` apart agree as the change check asks; at most
+    ``still_max`` s of waiting), with the images of that moment; the job's scene becomes
+    visible after its latency (`LatencyConfig`).
     A ``check`` of a perceived counter compares the depth image now with the one it was
     perceived from, over the perceived table: the table changed if more than
     ``change_pixels`` pixels moved by more than ``change_depth`` m (an object dropped in
@@ -88,6 +90,8 @@ class PerceptionSystem(LeafSystem):
         block: bool = True,
         change_pixels: int = 40,
         change_depth: float = 0.004,
+        still_dt: float = 0.1,
+        still_max: float = 3.0,
     ):
         super().__init__()
         self._perceiver = perceiver
@@ -96,6 +100,7 @@ class PerceptionSystem(LeafSystem):
         self._latency = (latency or LatencyConfig()).of("perception")
         self._block = block
         self._change = (change_pixels, change_depth)
+        self._still = (still_dt, still_max)
         self._worker = Worker("perception")
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))
         self._depth = self.DeclareAbstractInputPort("camera.depth_image", AbstractValue.Make(ImageDepth32F()))
@@ -141,14 +146,31 @@ class PerceptionSystem(LeafSystem):
                     job.wall_time(),
                     job.info["retake"],
                     job.info["depth"],
+                    cur.wall_total + job.wall_time(),
                 )
             )
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
             job = None
         last = job.counter if job is not None else cur.counter
         if job is None and req > max(last, 0):  # requests count from 1
-            rgb = np.array(self._rgb.Eval(context).data)  # copies: the job outlives this event
-            depth = np.array(self._depth.Eval(context).data[:, :, 0])
+            depth = np.array(self._depth.Eval(context).data[:, :, 0])  # copies: jobs outlive events
+            # The table at rest first: a frame `still_dt` after the last one that differs from
+            # it no more than the change check allows (an object pushed by the grasp may still
+            # be sliding or rocking when the arm has left it). After `still_max` s, go on.
+            pending = slot.pending
+            if pending is None or pending[0] != req:
+                state.get_mutable_abstract_state(self._job).set_value(_Slot(pending=(req, depth, t, t)))
+                return
+            _, depth0, t0, t_first = pending
+            if t - t0 < self._still[0] - 1e-9:
+                return
+            n = self._perceiver.changed_pixels(
+                depth0, depth, self._X_WC, self._K, self._change[1], still=True
+            )
+            if n > self._change[0] and t - t_first < self._still[1]:
+                state.get_mutable_abstract_state(self._job).set_value(_Slot(pending=(req, depth, t, t_first)))
+                return
+            rgb = np.array(self._rgb.Eval(context).data)
             # A retake: the request after a check that found the table changed.
             retake = checked.changed and checked.counter == req - 1
             job = self._worker.submit(
@@ -176,3 +198,4 @@ class PerceptionSystem(LeafSystem):
 @dataclass
 class _Slot(_Immutable):
     job: Job | None = None
+    pending: tuple | None = None  # (request, depth, when, first look): waiting for a still table
