@@ -29,6 +29,22 @@ def _corner(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
     return _cross(o, a, b) > LENGTH_TOL * float(np.hypot(b[0] - o[0], b[1] - o[1]))
 
 
+def convex_inside_distance(poly: np.ndarray, x, y) -> np.ndarray:
+    """Signed distance inside a convex polygon (V, 2), wound either way, of points given by
+    arrays ``x`` and ``y`` (any broadcastable shapes): the least distance to an edge's line,
+    > 0 inside, < 0 outside (a lower bound of the true distance out there; exact near an
+    edge). nan coordinates give nan."""
+    p = np.asarray(poly, float)
+    e = np.roll(p, -1, axis=0) - p
+    wind = np.sign(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])) or 1.0
+    n = wind * np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)  # inward
+    out = None
+    for (px, py), (nx, ny) in zip(p, n):
+        d = nx * (x - px) + ny * (y - py)
+        out = d if out is None else np.minimum(out, d)
+    return out
+
+
 def convex_hull_ccw(points: np.ndarray) -> np.ndarray:
     """Convex hull of 2-D points (Andrew's monotone chain), CCW; points within LENGTH_TOL of an
     edge (collinear, or a near-duplicate of a corner) are dropped."""

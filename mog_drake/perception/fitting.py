@@ -7,7 +7,7 @@ import numpy as np
 import shapely
 from scipy import ndimage
 
-from mog_drake.geometry.polygon import convex_hull_ccw, transform
+from mog_drake.geometry.polygon import convex_hull_ccw, convex_inside_distance, transform
 from mog_drake.scenes import SceneObject
 
 
@@ -23,24 +23,10 @@ def symmetry_order(vertices: np.ndarray, tol: float = 2e-4) -> int:
     return 1
 
 
-def _signed_distance(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Max over a CCW convex polygon's edges of the outward distance: < 0 inside, and a lower
-    bound of the true distance outside (exact near an edge)."""
-    e = np.roll(poly, -1, axis=0) - poly
-    n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    return ((pts[:, None, :] - poly[None, :, :]) * n[None]).sum(-1).max(axis=1)
-
-
 def near_polygon(x: np.ndarray, y: np.ndarray, poly: np.ndarray, margin: float) -> np.ndarray:
-    """Which points (arrays x, y of any one shape) lie within ``margin`` outside a CCW convex
-    polygon or inside it: `_signed_distance` < margin, one edge at a time (nan: False)."""
-    e = np.roll(poly, -1, axis=0) - poly
-    n = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
-    off = (n * poly).sum(axis=1) + margin
-    out = np.isfinite(x) & np.isfinite(y)
-    for (nx, ny), o in zip(n, off):
-        out &= nx * x + ny * y < o
-    return out
+    """Which points (arrays x, y of any one shape) lie inside a convex polygon or within
+    ``margin`` of its edges' lines outside it (nan: False)."""
+    return convex_inside_distance(poly, x, y) > -margin
 
 
 def _kmeans(pts: np.ndarray, k: int, rng: np.random.Generator, iters: int = 20) -> np.ndarray:
@@ -261,15 +247,9 @@ def pixels_inside(polygon: np.ndarray, shape: tuple[int, int], origin: tuple[int
     """Which pixel centres of a window (``shape`` (h, w), its pixel (0, 0) at image pixel
     ``origin``) lie inside a convex polygon (V, 2) in image pixel coordinates."""
     h, w = shape
-    u = np.arange(w) + origin[0]
-    v = np.arange(h) + origin[1]
-    p = np.asarray(polygon, float)
-    d = np.roll(p, -1, axis=0) - p
-    wind = np.sign(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])) or 1.0
-    inside = np.ones((h, w), dtype=bool)
-    for (px, py), (dx, dy) in zip(p, d):
-        inside &= wind * (dx * (v[:, None] - py) - dy * (u[None, :] - px)) >= 0
-    return inside
+    u = np.arange(w)[None, :] + origin[0]
+    v = np.arange(h)[:, None] + origin[1]
+    return convex_inside_distance(polygon, u, v) >= 0
 
 
 # A stencil of 19 poses: the centre, a step either way along each coordinate, and a step

@@ -161,11 +161,11 @@ _CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
 
 class _Image:
     """What one perceive call knows of the image: per-pixel points (P, nan where not on the
-    perceived table), heights, colour classes (-1 off the object pixels), pixel areas, which
-    pixels are explained by a fit, and the camera."""
+    perceived table), heights, colour classes (-1 off the object pixels), which pixels are
+    explained by a fit, and the camera."""
 
-    def __init__(self, P, z, cls, area, cam):
-        self.P, self.z, self.cls, self.area, self.cam = P, z, cls, area, cam
+    def __init__(self, P, z, cls, cam):
+        self.P, self.z, self.cls, self.cam = P, z, cls, cam
         self.shape = z.shape
         self.xy = P[..., :2].reshape(-1, 2)
         self.explained = np.zeros(z.shape, dtype=bool)
@@ -296,7 +296,7 @@ class Perceiver:
         obj_z = z.ravel()[obj_px]
         cls = np.full(z.shape, -1, dtype=np.int32)
         cls.ravel()[obj_px] = obj_cls
-        im = _Image(P, z, cls, area_px, Pinhole(X_WC, intrinsics))
+        im = _Image(P, z, cls, Pinhole(X_WC, intrinsics))
         rng = np.random.default_rng(seed)
         found: list[SceneObject] = []
         # Large shapes first: their fits then mask their pixels for the smaller ones.
@@ -325,7 +325,7 @@ class Perceiver:
                 best = None  # (score of the split, explained mask, objects)
                 for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
                     before = im.explained
-                    fits = []  # (pose, window, pixels inside, lower pixels, score)
+                    fits: list[_Fit] = []
                     # Best first: every seed left is fitted, and the fit that explains most
                     # (an instance standing clear of the others) is kept; its pixels then
                     # count against the next ones.

@@ -49,12 +49,18 @@ class Pinhole:
         c = [R[i][0] * x + R[i][1] * y + R[i][2] * z + p[i] for i in range(3)]
         return self.fx * c[0] / c[2] + self.cx, self.fy * c[1] / c[2] + self.cy
 
+    def pixels(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World points (..., 3) -> their pixel coordinates (..., 2) and depths (...,)."""
+        pc = np.asarray(points, float) @ self.R_CW.T + self.p_CW
+        uv = np.stack(
+            [self.fx * pc[..., 0] / pc[..., 2] + self.cx, self.fy * pc[..., 1] / pc[..., 2] + self.cy], -1
+        )
+        return uv, pc[..., 2]
+
     def project(self, xy: np.ndarray, z: float) -> np.ndarray:
         """Points (..., 2) on the horizontal plane at height z -> (..., 2) pixel coordinates."""
-        R = self.R_CW
-        base = z * R[:, 2] + self.p_CW
-        pc = [xy[..., 0] * R[i, 0] + xy[..., 1] * R[i, 1] + base[i] for i in range(3)]
-        return np.stack([self.fx * pc[0] / pc[2] + self.cx, self.fy * pc[1] / pc[2] + self.cy], axis=-1)
+        xy = np.asarray(xy, float)
+        return self.pixels(np.concatenate([xy, np.full(xy.shape[:-1] + (1,), float(z))], axis=-1))[0]
 
 
 def chromaticity(rgb: np.ndarray) -> np.ndarray:

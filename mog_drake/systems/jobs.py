@@ -50,9 +50,9 @@ class Job:
     """One job: its future, when it was requested (simulated time) and submitted (wall
     time). Held in abstract state, which Drake copies on every update: copies share it."""
 
-    def __init__(self, future: Future, t_request: float, counter: int, info=None):
+    def __init__(self, future: Future, t_request: float, counter: int, t_submit: float, info=None):
         self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
-        self.t_submit = time.perf_counter()
+        self.t_submit = t_submit
 
     def __copy__(self):
         return self
@@ -113,7 +113,7 @@ class Worker:
             out = fn(*args)
             return out, time.perf_counter() - t0
 
-        return Job(self._pool.submit(run), t_request, counter, info)
+        return Job(self._pool.submit(run), t_request, counter, t0, info)
 
     def shutdown(self) -> None:
         """Lets a running job finish, then ends the thread (a job cannot be interrupted)."""

@@ -82,7 +82,7 @@ class PlannerSystem(LeafSystem):
         job = context.get_abstract_state(self._job).get_value().job
         if job is not None and job.visible(t, self._latency, self._block):
             d, rng = job.result()
-            base = job.info
+            base, n_objects = job.info
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
             if d.status == "grasp":
                 blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
@@ -91,7 +91,7 @@ class PlannerSystem(LeafSystem):
             cur = Decision(
                 job.counter,
                 d,
-                job.n_objects,
+                n_objects,
                 recent[-self.REMEMBER :],
                 d.failures,
                 blob_grasps,
@@ -120,9 +120,8 @@ class PlannerSystem(LeafSystem):
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             t_request=t,
             counter=p.counter,
-            info=base,
+            info=(base, len(p.scene)),
         )
-        job.n_objects = len(p.scene)
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
     def _plan(self, scene, rng, avoid, failures, grasp_unrecognised):

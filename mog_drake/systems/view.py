@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from mog_drake.geometry.polygon import convex_hull_ccw
+from mog_drake.geometry.polygon import convex_hull_ccw, convex_inside_distance
 from mog_drake.perception.pointcloud import Pinhole
 
 
@@ -13,10 +13,7 @@ def _image_polygon(cam: Pinhole, rect, z: float = 0.0) -> np.ndarray:
 
 def _inside_margin(poly: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Signed distance (pixels) of points inside a convex image polygon: > 0 inside."""
-    e = np.roll(poly, -1, axis=0) - poly
-    wind = np.sign(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])) or 1.0
-    n = wind * np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)  # inward
-    return ((uv[:, None, :] - poly[None]) * n[None]).sum(-1).min(axis=1)
+    return convex_inside_distance(poly, uv[:, 0], uv[:, 1])
 
 
 class ArmView:
@@ -48,7 +45,6 @@ class ArmView:
         self._frames = frames
         self._base = np.asarray(base_xyz, float)
         self._cam = Pinhole(X_WC, intrinsics)
-        self._X_WC = np.asarray(X_WC, float)
         self._table = _image_polygon(self._cam, table)
         self._ignore = [_image_polygon(self._cam, r) for r in ignore]
         self._radius, self._hang, self._step, self._above = radius, hang, step, above
@@ -70,18 +66,9 @@ class ArmView:
     def _balls(self, q, holding: bool):
         """The arm's sample points in the image, and each ball's radius there (pixels); None
         when a point is at the lens."""
-        p = self.points(q, holding)
-        R, t = self._X_WC[:3, :3], self._X_WC[:3, 3]
-        depth = (p - t) @ R[:, 2]
+        uv, depth = self._cam.pixels(self.points(q, holding))
         if np.any(depth <= 0.05):
             return None
-        uv = np.stack(
-            [
-                self._cam.fx * ((p - t) @ R[:, 0]) / depth + self._cam.cx,
-                self._cam.fy * ((p - t) @ R[:, 1]) / depth + self._cam.cy,
-            ],
-            axis=1,
-        )
         return uv, self._radius * self._cam.fx / depth
 
     def clear_of(self, q, holding: bool, prisms) -> bool:
