@@ -12,7 +12,7 @@ from pydrake.systems.analysis import Simulator
 
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenario import Scenario, SceneFile
-from mog_drake.systems.jobs import LatencyConfig
+from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.pick import MakePickDiagram
 
 
@@ -109,6 +109,39 @@ def test_results_become_visible_only_after_their_latency(tmp_path):
     assert s.wait_perception == pytest.approx(0.1 + 0.3, abs=3 * period)
     assert s.wait_planning == pytest.approx(2.0, abs=3 * period)
     assert s.attempts and s.attempts[0]["start"] >= dec.t_visible - 1e-9
+
+
+def _spin(seconds):
+    """Busy for ``seconds`` of this thread's CPU time."""
+    end = time.thread_time() + seconds
+    while time.thread_time() < end:
+        pass
+    return "spun"
+
+
+def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
+    """A job that sleeps 0.3 s costs no CPU time: with the ``cpu`` clock it is visible as soon
+    as it is done; one that computes 0.2 s is not visible 0.1 s of simulated time after its
+    request, and is 0.25 s after it (the collecting event waits for it, as in simulation)."""
+    assert LatencyConfig("cpu").clock == "cpu" and LatencyConfig().clock == "wall"
+    worker = Worker("test", "cpu")
+    try:
+        sleeper = worker.submit(time.sleep, 0.3, t_request=0.0, counter=1)
+        assert sleeper.visible(0.05, None, block=True)
+        assert sleeper.wall_time() >= 0.3 and sleeper.cpu_time() < 0.05
+        spinner = worker.submit(_spin, 0.2, t_request=1.0, counter=2)
+        assert not spinner.visible(1.1, None, block=True)
+        assert spinner.visible(1.25, None, block=True)
+        assert spinner.result() == "spun" and 0.2 <= spinner.cpu_time() < 0.25
+    finally:
+        worker.shutdown()
+    wall = Worker("test", "wall")
+    try:
+        sleeper = wall.submit(time.sleep, 0.3, t_request=0.0, counter=1)
+        assert not sleeper.visible(0.05, None, block=True)
+        assert sleeper.visible(0.5, None, block=True)
+    finally:
+        wall.shutdown()
 
 
 def test_a_changed_table_forces_a_new_plan(tmp_path):

@@ -15,7 +15,11 @@ Diagram's thread waits at most about that long for it.
 
 Simulated time (`LatencyConfig`): a result requested at simulated time t becomes visible at
 t + latency, the latency being the job's measured wall time (``measured``) or a fixed time
-per stage (``fixed``), for runs comparable across machines. In a simulation that runs faster
+per stage (``fixed``), for runs comparable across machines, or the CPU time of the job's
+thread (``cpu``). ``cpu`` is what the job would take on a core of its own, as on a cell where
+the arm is real: in simulation, the simulator's own physics and other runs on the machine
+compete with the job for cores and stretch its wall time, but not its CPU time. (Drake's
+physics and numpy here are single-threaded, so the thread's CPU time is the job's.) In a simulation that runs faster
 than the wall clock, a collecting event waits (on the wall clock) for a job still running
 until the job has run as long as simulated time has advanced since the request: then either
 the job is done, and its result is visible if its latency has passed, or it is not, and its
@@ -24,18 +28,20 @@ whatever the simulation's speed. On hardware (``block`` False) nothing waits: a 
 visible at the first update after it is ready and its latency has passed.
 """
 
+import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 
-LATENCY_MODES = ("measured", "fixed")
+LATENCY_MODES = ("measured", "cpu", "fixed")
 
 
 @dataclass
 class LatencyConfig:
     """How long perception and planning take in simulated time: ``measured`` (each job's own
-    wall time) or ``fixed`` (``perception_s`` and ``planning_s`` for every job)."""
+    wall time), ``cpu`` (each job's CPU time) or ``fixed`` (``perception_s`` and
+    ``planning_s`` for every job)."""
 
     mode: str = "measured"
     perception_s: float = 0.3
@@ -45,14 +51,29 @@ class LatencyConfig:
         """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
         return getattr(self, f"{stage}_s") if self.mode == "fixed" else None
 
+    @property
+    def clock(self) -> str:
+        """What a measured latency is: "cpu" (the job thread's CPU time) or "wall"."""
+        return "cpu" if self.mode == "cpu" else "wall"
+
 
 class Job:
     """One job: its future, when it was requested (simulated time) and submitted (wall
     time). Held in abstract state, which Drake copies on every update: copies share it."""
 
-    def __init__(self, future: Future, t_request: float, counter: int, t_submit: float, info=None):
+    def __init__(
+        self,
+        future: Future,
+        t_request: float,
+        counter: int,
+        t_submit: float,
+        info=None,
+        clock: str = "wall",
+        started: dict | None = None,
+    ):
         self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
-        self.t_submit = t_submit
+        self.t_submit, self.clock = t_submit, clock
+        self._started = started if started is not None else {}
 
     def __copy__(self):
         return self
@@ -61,13 +82,18 @@ class Job:
         return self
 
     def elapsed(self) -> float:
-        """Wall time since the job was submitted (s)."""
-        return time.perf_counter() - self.t_submit
+        """Time the job has run so far on its clock (s): wall time since it was submitted, or
+        its thread's CPU time since it started."""
+        if self.clock == "wall":
+            return time.perf_counter() - self.t_submit
+        if "clock_id" not in self._started:
+            return 0.0
+        return time.clock_gettime(self._started["clock_id"]) - self._started["cpu0"]
 
     def visible(self, t: float, latency: float | None, block: bool) -> bool:
         """Whether the job's result is visible at simulated time ``t`` (see the module's
-        docstring); ``latency`` None: its measured wall time. A job that raised re-raises
-        here, in the Diagram's thread."""
+        docstring); ``latency`` None: its measured time on its clock. A job that raised
+        re-raises here, in the Diagram's thread."""
         waited = t - self.t_request
         if latency is not None:
             if waited < latency - 1e-9:
@@ -77,21 +103,31 @@ class Job:
                     return False
                 self.future.result()
             return True
-        if not self.future.done():
+        while not self.future.done():
             if not block:
                 return False
-            ahead = waited - self.elapsed()  # simulated time past the request, beyond wall time
+            ahead = waited - self.elapsed()  # simulated time past the request, beyond the job's
             if ahead <= 0:
                 return False
             try:
-                self.future.result(timeout=ahead)
+                self.future.result(timeout=max(ahead, 1e-3))
             except FutureTimeout:
-                return False
-        return self.wall_time() <= waited + 1e-9
+                if self.clock == "wall":
+                    return False
+                # CPU time runs slower than the wall clock when the job shares a core: look again.
+        return self.latency() <= waited + 1e-9
 
     def wall_time(self) -> float:
         """The job's latency on the wall clock, request to result (s); it must be done."""
         return self.future.result()[1]
+
+    def cpu_time(self) -> float:
+        """The CPU time of the job's thread while it ran (s); it must be done."""
+        return self.future.result()[2]
+
+    def latency(self) -> float:
+        """The job's measured latency on its clock (s); it must be done."""
+        return self.cpu_time() if self.clock == "cpu" else self.wall_time()
 
     def result(self):
         return self.future.result()[0]
@@ -100,20 +136,24 @@ class Job:
 class Worker:
     """One worker thread running one system's jobs in order."""
 
-    def __init__(self, name: str):
-        self._name = name
+    def __init__(self, name: str, clock: str = "wall"):
+        self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
     def submit(self, fn, *args, t_request: float, counter: int, info=None) -> Job:
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t0 = time.perf_counter()
+        started: dict = {}
 
         def run():
+            clock_id = time.pthread_getcpuclockid(threading.get_ident())
+            cpu0 = time.clock_gettime(clock_id)
+            started.update(clock_id=clock_id, cpu0=cpu0)
             out = fn(*args)
-            return out, time.perf_counter() - t0
+            return out, time.perf_counter() - t0, time.clock_gettime(clock_id) - cpu0
 
-        return Job(self._pool.submit(run), t_request, counter, t0, info)
+        return Job(self._pool.submit(run), t_request, counter, t0, info, self._clock, started)
 
     def shutdown(self) -> None:
         """Lets a running job finish, then ends the thread (a job cannot be interrupted)."""

@@ -97,11 +97,12 @@ class PerceptionSystem(LeafSystem):
         self._perceiver = perceiver
         self._X_WC = np.asarray(X_WC, float)
         self._K = tuple(float(v) for v in K)
-        self._latency = (latency or LatencyConfig()).of("perception")
+        latency = latency or LatencyConfig()
+        self._latency = latency.of("perception")
         self._block = block
         self._change = (change_pixels, change_depth)
         self._still = (still_dt, still_max)
-        self._worker = Worker("perception")
+        self._worker = Worker("perception", latency.clock)
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))
         self._depth = self.DeclareAbstractInputPort("camera.depth_image", AbstractValue.Make(ImageDepth32F()))
         self._request = self.DeclareVectorInputPort("request", 1)

@@ -57,9 +57,10 @@ class PlannerSystem(LeafSystem):
         self._planner = planner
         self._spec = spec or PlannerSpec()
         self._spec.check()
-        self._latency = (latency or LatencyConfig()).of("planning")
+        latency = latency or LatencyConfig()
+        self._latency = latency.of("planning")
         self._block = block
-        self._worker = Worker("planner")
+        self._worker = Worker("planner", latency.clock)
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
