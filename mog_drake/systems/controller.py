@@ -171,6 +171,7 @@ class ControllerSystem(LeafSystem):
                                 "grasp": dec.grasp.tolist(),
                                 "reason": str(e),
                                 "planning_time": dec.planning_time,
+                                "planning_cpu": d.cpu_time,
                             },
                         ]
                         new.unreachable = s.unreachable + 1
@@ -187,6 +188,7 @@ class ControllerSystem(LeafSystem):
                                 "shapes": list(dec.shapes),
                                 "grasp": dec.grasp.tolist(),
                                 "planning_time": dec.planning_time,
+                                "planning_cpu": d.cpu_time,
                                 "objects_seen": d.objects_seen,
                                 "physics_checks": dec.physics_checks,
                                 "expected": list(dec.expected),

@@ -185,6 +185,8 @@ class PickRun:
             "wait_perception_s": self.wait_perception,
             "wait_planning_s": self.wait_planning,
             "planning_time_s": planning,
+            # the planning jobs' CPU time: their latency under `latency.mode` cpu
+            "planning_cpu_s": sum(a.get("planning_cpu", 0.0) for a in [*self.attempts, *self.skipped]),
             "perception_time_s": self.perception_time,
             "retakes": self.retakes,
             "wall_time_s": self.wall_time,

@@ -29,6 +29,7 @@ class Decision(_Immutable):
     t_request: float = 0.0  # simulated time the scene became visible (the planning request)
     t_visible: float = 0.0  # simulated time this decision became visible
     wall_time: float = 0.0  # the planning job's wall time (s)
+    cpu_time: float = 0.0  # the planning job's CPU time (s)
     previous: Decision | None = None  # the state this one was planned from
 
 
@@ -100,6 +101,7 @@ class PlannerSystem(LeafSystem):
                 job.t_request,
                 t,
                 job.wall_time(),
+                job.cpu_time(),
                 dataclasses.replace(base, previous=None),  # one step back is all a retake needs
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
