@@ -298,7 +298,7 @@ def _cmd_eval(args) -> int:
 
         modes = [m.strip() for m in args.modes.split(",") if m.strip()]
         if not modes or any(m not in MODES for m in modes):
-            raise MogError(f"--modes must list mog and/or sog, got {args.modes!r}")
+            raise MogError(f"--modes must list some of {', '.join(MODES)}, got {args.modes!r}")
         scenario = ""
         if args.scenario:
             from mog_drake.scenario import load_scenario
@@ -421,7 +421,7 @@ def cmd_pick(args) -> int:
         summary["replay"] = args.record
     _emit(
         args,
-        {"summary": summary, "attempts": run.attempts, "skipped": run.skipped},
+        {"summary": summary, "attempts": run.attempts, "skipped": run.skipped, "pushes": run.pushes},
         run_text(run, summary) + (f"\nreplay: {args.record}" if args.record else ""),
     )
     if args.meshcat and sys.stdin.isatty():
@@ -647,7 +647,11 @@ def build_parser() -> argparse.ArgumentParser:
         sp = sub.add_parser(name, help=helptext)
         sp.add_argument("--scenario", help="scenario YAML (default: the built-in one)")
         sp.add_argument("--seed", type=int, help="scene and planner seed")
-        sp.add_argument("--mode", choices=MODES, help="multi-object (Alg. 1) or single-object picking")
+        sp.add_argument(
+            "--mode",
+            choices=MODES,
+            help="multi-object (Alg. 1), single-object, or multi-object with consolidating pushes (push-mog)",
+        )
         sp.add_argument("--objects", type=int, help="objects on a generated cluttered table")
         sp.add_argument("--time-limit", type=float, help="simulated robot seconds")
         sp.add_argument("--json", action="store_true")

@@ -29,6 +29,7 @@ COLUMNS = [
     "cycle_time_s",
     "wait_perception_s",
     "wait_planning_s",
+    "pushes",
     "paper_success_rate",
     "paper_pph",
 ]
@@ -62,6 +63,7 @@ def picking_worker(task: dict) -> dict:
         "summary": run.summary(),
         "attempts": run.attempts,
         "skipped": run.skipped,
+        "pushes": run.pushes,
         # Where each object outside the bin ended: {id: [where, [x, y, z], shape]}.
         "left": {str(i): [w, p, run.shapes[i]] for i, (w, p) in run.left.items()},
     }
@@ -131,6 +133,9 @@ def summarize(results: list[dict], modes) -> dict:
             ("robot_time_s", 1.0),
             ("wait_perception_s", 1.0),
             ("wait_planning_s", 1.0),
+            ("pushes", 1.0),
+            ("push_time_s", 1.0),
+            ("push_gain", 1.0),
         ):
             # Sweeps from before the loop stopped blocking have no waits (their PPH left
             # perception out and counted planning as idle time).
@@ -149,7 +154,10 @@ def summarize(results: list[dict], modes) -> dict:
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
-    return {"rows": rows, "pph_ratio_mog_over_sog": ratio}
+    out = {"rows": rows, "pph_ratio_mog_over_sog": ratio}
+    if "push-mog" in pph and pph.get("sog"):
+        out["pph_ratio_push_mog_over_sog"] = pph["push-mog"] / pph["sog"]
+    return out
 
 
 def transit_drops(runs: list[dict]) -> dict:
@@ -311,6 +319,8 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
     text = format_table(summary["rows"], COLUMNS)
     ratio = summary["pph_ratio_mog_over_sog"]
     text += f"\nPPH multi / single: {ratio:.2f}" if ratio == ratio else "\nPPH multi / single: n/a (one mode)"
+    if "pph_ratio_push_mog_over_sog" in summary:
+        text += f"\nPPH push-mog / single: {summary['pph_ratio_push_mog_over_sog']:.2f}"
     text += "\n" + losses_text(summary)
     if compare_dir:
         other = Path(compare_dir) / "results.jsonl"

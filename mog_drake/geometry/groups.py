@@ -52,6 +52,25 @@ def objects_in_reach(scene, group, gripper, margin: float) -> list[int]:
     return sorted(set(int(i) for i in near) | set(int(i) for i in group))
 
 
+def adjacent_groups(polys, gap: float, w_g: float) -> list[tuple[int, ...]]:
+    """For each object, it and the objects whose outlines come within ``gap`` (m) of its own,
+    as groups (sorted tuples, largest first, duplicates and strict subsets of another dropped,
+    and any whose summed d_fmin exceeds the stroke ``w_g`` dropped): the groups that pushes
+    make, which the radius of `create_obj_groups` misses when objects meet end to end."""
+    if len(polys) < 2:
+        return []
+    shp = np.array([shapely.Polygon(polys.polygon(i)) for i in range(len(polys))], dtype=object)
+    d = shapely.distance(shp[:, None], shp[None, :])
+    hoods = []
+    for i in range(len(polys)):
+        g = tuple(int(j) for j in np.flatnonzero(d[i] <= gap))
+        if len(g) > 1 and g not in hoods:
+            hoods.append(g)
+    sets = [set(g) for g in hoods]
+    keep = [g for g, s in zip(hoods, sets) if not any(s < other for other in sets)]
+    return rank_obj_groups(keep, polys.d_fmin, w_g)
+
+
 #: Grid of the conditions grouping (`condition_groups`): positions every STEP metres over the
 #: objects, closing axes k pi / N_ORIENTATIONS.
 CONDITION_GROUPS_STEP = 0.005  # m

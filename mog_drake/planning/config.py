@@ -9,13 +9,15 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import DEFAULT_GROUP_RADIUS, GROUPINGS
 from mog_drake.planning.planner import METHODS, PlannerConfig
 
-MODES = ("mog", "sog")
+MODES = ("mog", "sog", "push-mog")
 
 
 @dataclass
 class PlannerSpec:
     method: str = "gp"  # gp | rand-phys | rank-phys | rand-fil-phys
-    mode: str = "mog"  # mog (Alg. 1) | sog (the single-object baseline)
+    # mog (Alg. 1) | sog (the single-object baseline) | push-mog (Alg. 1 with consolidating
+    # pushes, an extension: see next_pick)
+    mode: str = "mog"
     n_positions: int = 70
     n_orientations: int = 7
     seed: int = 0
@@ -61,6 +63,18 @@ class PlannerSpec:
     # Before the run ends on "no grasp found", plan every group again with up to 12 more
     # physics checks each, 48 in all (an extension).
     last_resort: bool = True
+    # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
+    # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
+    # an object and the one it is pushed to may start.
+    max_pushes: int = 12
+    push_checks: int = 3
+    push_speed: float = 0.05
+    push_reach: float = 0.12
+    # push-mog's rule: push when the objects per second of robot time expected from the push
+    # and the grasp it sets up beat the grasp now. The robot time of a push and of a grasp
+    # (observe pose to observe pose, s; measured on the seed-0 tables).
+    push_time_s: float = 4.0
+    grasp_time_s: float = 6.5
 
     def check(self) -> None:
         """Refuses a setting that would only fail once the robot is running."""
@@ -83,6 +97,14 @@ class PlannerSpec:
             )
         if not 0 < self.group_radius <= 0.2:
             raise MogError(f"planner: group_radius must be in (0, 0.2] m, got {self.group_radius}")
+        if self.max_pushes < 0 or self.push_checks < 0:
+            raise MogError("planner: max_pushes and push_checks must be >= 0")
+        if not 0 < self.push_speed <= 0.25:
+            raise MogError(f"planner: push_speed must be in (0, 0.25] m/s, got {self.push_speed}")
+        if not 0 < self.push_reach <= 0.2:
+            raise MogError(f"planner: push_reach must be in (0, 0.2] m, got {self.push_reach}")
+        if not (0 < self.push_time_s <= 60 and 0 < self.grasp_time_s <= 60):
+            raise MogError("planner: push_time_s and grasp_time_s must be in (0, 60] s")
         if self.grouping not in GROUPINGS:
             raise MogError(f"planner.grouping must be one of {', '.join(GROUPINGS)}, got {self.grouping!r}")
 

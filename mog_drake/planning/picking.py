@@ -21,7 +21,9 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import objects_in_reach, ranked_groups
+from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
+from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.scenes import Scene, SceneObject, make_shape
@@ -36,6 +38,9 @@ MEMORY_SIZE = 64
 # stopped (an extension; see next_pick's ``last_resort``).
 LAST_RESORT_CHECKS = 12
 LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
+# push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
+# between them, and the pushed object may turn a little as it stops).
+ADJACENT_GAP = PUSH_GAP + 0.004  # m
 
 
 @dataclass(frozen=True, eq=False)  # compared by identity (it holds arrays)
@@ -92,8 +97,9 @@ def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=(
 
 @dataclass
 class PickDecision:
-    """status: "grasp" (grasp and group set), "table_clear", "no_grasp", or "unrecognised" (no
-    library object is left but perception sees something it cannot recognise)."""
+    """status: "grasp" (grasp and group set), "push" (push set: push-mog), "table_clear",
+    "no_grasp", or "unrecognised" (no library object is left but perception sees something
+    it cannot recognise)."""
 
     status: str
     grasp: np.ndarray | None = None
@@ -113,10 +119,16 @@ class PickDecision:
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup, ...] = ()
+    # push-mog: the push to make (`mog_drake.geometry.push.Push`); ``group`` is then the group
+    # it sets up and ``expected`` what the physics check lifted with that group's grasp after
+    # the push; ``now``: the objects the grasp that was possible without it lifted.
+    push: Push | None = None
+    now: int = 0
 
     def to_dict(self) -> dict:
         return {
             "status": self.status,
+            **({"push": self.push.to_dict(), "now": self.now} if self.push is not None else {}),
             "grasp": None if self.grasp is None else [float(v) for v in self.grasp],
             "group": list(self.group),
             "unrecognised": self.unrecognised,
@@ -139,6 +151,8 @@ def next_pick(
     avoid=(),
     failures: tuple[FailedGroup, ...] | None = None,
     grasp_unrecognised: bool = True,
+    pushes_left: int = 0,
+    adjacent: float = 0.0,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -172,9 +186,34 @@ def next_pick(
     grasp_unrecognised (an extension): once no library object is left, the blobs perception
     could not recognise (a prism knocked onto its side) are planned as prisms of their outline
     and top height (``unrecognised_scene``); without a grasp for them the status is
-    "unrecognised"."""
+    "unrecognised".
+
+    mode "push-mog" (an extension): Alg. 1's grasp, or a consolidating push when that is
+    worth more (see `_consider_pushes`; at most ``pushes_left`` more). Its grasps are
+    planned for Alg. 1's groups and for the groups of objects that meet within
+    ``ADJACENT_GAP`` (``adjacent``, `adjacent_groups`): a push leaves two bars end to end,
+    farther apart than the group radius."""
     spec = spec or PlannerSpec()
     spec.check()
+    if spec.mode == "push-mog":
+        d = next_pick(
+            scene,
+            planner,
+            replace(spec, mode="mog"),
+            rng,
+            avoid,
+            failures,
+            grasp_unrecognised,
+            adjacent=ADJACENT_GAP,
+        )
+        if (
+            pushes_left > 0
+            and spec.push_checks > 0
+            and not d.unrecognised
+            and d.status in ("grasp", "no_grasp")
+        ):
+            _consider_pushes(scene, planner, spec, d, rng, avoid)
+        return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
     if len(scene) == 0:
@@ -191,6 +230,9 @@ def next_pick(
     polys = scene.polygons()
     if mode == "mog":
         groups = ranked_groups(polys, planner.gripper, grouping, spec.group_radius)
+        if adjacent > 0:
+            more = [g for g in adjacent_groups(polys, adjacent, planner.gripper.w_g) if g not in groups]
+            groups = sorted(groups + more, key=lambda g: -len(g))
     else:
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
@@ -236,6 +278,63 @@ def next_pick(
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid) -> None:
+    """push-mog: turns decision ``d`` (Alg. 1's) into a push when the push and the grasp it
+    sets up are expected to take more objects per second of robot time than ``d``'s grasp:
+    m / (push_time_s + grasp_time_s) > n / grasp_time_s, n being what ``d``'s grasp lifted in
+    the physics check and m what the grasp after the push lifted.
+
+    Candidates (`push_candidates`): an object pushed along the line of centres to another one,
+    joining the largest group (of Alg. 1's, on this table) that holds the other one and not
+    it, and fits the jaws. Those whose group is large enough to beat ``d`` by that rule, even
+    if the grasp lifts it all, are simulated largest group first, then shortest push, up to
+    ``push_checks`` of them: the push in physics (the verifier's ``push``), then the group's
+    grasp planned on the table the push leaves (the same planner, physics included)."""
+    t0 = time.perf_counter()
+    verifier = planner.verifier
+    if not hasattr(verifier, "push"):
+        raise MogError("push-mog needs a verifier that simulates pushes (DrakeVerifier)")
+    n_now = len(d.expected) if d.status == "grasp" else 0
+    tp, tg = spec.push_time_s, spec.grasp_time_s
+    polys = scene.polygons()
+    groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
+    w_g = planner.gripper.w_g
+    options = []
+    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.push_reach):
+        joined = next((g for g in groups if p.toward in g and p.target not in g), (p.toward,))
+        group = tuple(sorted((p.target, *joined)))
+        if polys.d_fmin[list(group)].sum() > w_g:
+            continue
+        if len(group) / (tp + tg) > n_now / tg:
+            options.append((-len(group), p.distance, p, group))
+    options.sort(key=lambda o: o[:2])
+    best, checks = None, 0
+    for _, _, p, group in options[: spec.push_checks]:
+        r = verifier.push(scene, p, spec.push_speed)
+        if r.error:
+            continue
+        res = planner.plan(r.scene, group, rng=rng, avoid=avoid)
+        checks += res.tested
+        if res.found:
+            lifted = tuple(res.result.lifted)
+        elif res.best_lift is not None:
+            lifted = tuple(res.best_lift[1])
+        else:
+            continue
+        rate = len(lifted) / (tp + tg)
+        if rate > n_now / tg and (best is None or len(lifted) > len(best[1])):
+            best = (p, lifted, group)
+            if len(lifted) >= len(group):  # the largest group first: none to come lifts more
+                break
+    d.physics_checks += checks
+    if best is not None:
+        d.now, d.push = n_now, best[0]
+        d.status, d.group, d.expected, d.grasp = "push", best[2], best[1], None
+        d.shapes = tuple(scene.objects[i].shape for i in d.group)
+        d.partial = d.last_resort = False
+    d.planning_time += time.perf_counter() - t0
 
 
 def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:

@@ -9,7 +9,7 @@ many candidates of one group pays the build once.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.multibody.plant import AddMultibodyPlant
@@ -18,6 +18,8 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, EventStatus, 
 
 from mog_drake.geometry import GripperGeometry, objects_in_reach
 from mog_drake.geometry.conditions import jaw_collision_free
+from mog_drake.geometry.push import ease as _smooth
+from mog_drake.geometry.push import push_duration
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -87,12 +89,6 @@ class VerifierConfig:
         }
 
 
-def _smooth(s: float) -> tuple[float, float]:
-    """Cubic ease 0 -> 1 on s in [0, 1] and its derivative."""
-    s = min(max(s, 0.0), 1.0)
-    return 3 * s * s - 2 * s**3, 6 * s - 6 * s * s
-
-
 class GraspScript(LeafSystem):
     """Desired gantry and finger states over time for one grasp u = (x, y, theta) (a numeric
     parameter): hold open at u, close the jaws at constant speed, squeeze, lift, hold."""
@@ -132,10 +128,64 @@ class GraspScript(LeafSystem):
         output.SetFromVector([x, y, z, th, -f, f, 0.0, 0.0, zd, 0.0, -fd, fd])
 
 
+class PushScript(LeafSystem):
+    """Desired gantry and finger states for one push (`mog_drake.geometry.push.Push`, set as a
+    numeric parameter): the closed jaws at grasp height move from the push's start to its
+    end along a cubic ease over ``duration``, then stay."""
+
+    def __init__(self, gripper: GripperGeometry, config: VerifierConfig):
+        super().__init__()
+        self._g = gripper
+        self._cfg = config
+        self._z0 = config.physics.finger_height + config.physics.finger_clearance
+        # x0, y0, x1, y1, yaw, duration
+        self._index = self.DeclareNumericParameter(BasicVector(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])))
+        self.DeclareVectorOutputPort("desired_state", 12, self._calc)
+
+    @property
+    def z_grasp(self) -> float:
+        return self._z0
+
+    def set_push(self, context, push, duration: float) -> None:
+        context.get_mutable_numeric_parameter(self._index).SetFromVector(
+            [*push.start, *push.end, push.yaw, duration]
+        )
+
+    def _calc(self, context, output) -> None:
+        x0, y0, x1, y1, yaw, T = context.get_numeric_parameter(self._index).value()
+        s, sd = _smooth(context.get_time() / T)
+        sd = sd / T if context.get_time() <= T else 0.0
+        f = self._g.plate_thickness / 2
+        x, y = x0 + s * (x1 - x0), y0 + s * (y1 - y0)
+        output.SetFromVector([x, y, self._z0, yaw, -f, f, sd * (x1 - x0), sd * (y1 - y0), 0.0, 0.0, 0.0, 0.0])
+
+
+@dataclass
+class PushResult:
+    """Where a push leaves the objects: ``scene`` (the simulated objects at their new planar
+    poses, every other object where it was), ``moved`` (id -> distance its centre moved, m),
+    ``error`` (empty when the push ran as intended: an object tipped over, left the table or
+    a solver fault is an error, and then ``scene`` is None)."""
+
+    scene: object = None
+    moved: dict = field(default_factory=dict)
+    error: str = ""
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+
+
 class _GroupSim:
     """A built diagram for one (scene, group): plant, script, simulator, default context."""
 
-    def __init__(self, scene, ids: list[int], gripper: GripperGeometry, config: VerifierConfig, meshcat=None):
+    def __init__(
+        self,
+        scene,
+        ids: list[int],
+        gripper: GripperGeometry,
+        config: VerifierConfig,
+        meshcat=None,
+        script_type=None,
+    ):
         t0 = time.perf_counter()
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(config.contact.plant, builder)
@@ -154,7 +204,7 @@ class _GroupSim:
                 for n in ("carriage_x", "carriage_y", "carriage_z", "palm", "left_finger", "right_finger")
             ],
         )
-        self.script = builder.AddSystem(GraspScript(gripper, config))
+        self.script = builder.AddSystem((script_type or GraspScript)(gripper, config))
         builder.Connect(
             self.script.get_output_port(), plant.get_desired_state_input_port(self.gripper.instance)
         )
@@ -214,6 +264,72 @@ class DrakeVerifier:
         return 0.0 if self._sim is None else self._sim.build_time
 
     SETTLE_PERIOD = 0.01  # s between two looks at the objects' speeds (settle_window)
+    PUSH_SETTLE = 0.3  # s the objects come to rest after a push, before their poses are read
+    PUSH_REACH = 0.05  # m around the pushed object's path: objects it can move
+
+    def push(self, scene, push, speed: float = 0.1) -> PushResult:
+        """Simulates ``push`` (`mog_drake.geometry.push.Push`) with the closed jaws at a mean
+        ``speed`` (m/s), and returns where it leaves the objects (`PushResult`)."""
+        from mog_drake.scenes import SceneObject
+
+        t0 = time.perf_counter()
+        polys = scene.polygons()
+        a = np.asarray(push.start, float)
+        u = push.direction
+        reach = push.length + polys.radii[push.target] * 2
+        t = np.clip((polys.centers - a) @ u, 0.0, reach)
+        gap = np.linalg.norm(polys.centers - (a + t[:, None] * u), axis=1)
+        ids = sorted(set(np.flatnonzero(gap < polys.radii + self.PUSH_REACH).tolist()) | {push.target})
+        sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat, PushScript)
+        plant, pc = sim.plant, sim.plant_context
+        duration = push_duration(push, speed)
+        sim.script.set_push(sim.script_context, push, duration)
+        for i, body in sim.bodies.items():
+            plant.SetFloatingBaseBodyPoseInWorldFrame(pc, body, pose_to_transform(*sim.poses[i]))
+        j = sim.gripper.joints
+        f = self.gripper.plate_thickness / 2
+        for joint, q in zip((j[0], j[1], j[2], j[4], j[5]), (*push.start, sim.script.z_grasp, -f, f)):
+            joint.set_translation(pc, q)
+        j[3].set_angle(pc, push.yaw)
+        cpu_deadline = time.process_time() + self.config.cpu_budget
+
+        def monitor(root_context):
+            if time.process_time() > cpu_deadline:
+                return EventStatus.Failed(None, f"CPU budget of {self.config.cpu_budget:g} s exceeded")
+            return EventStatus.Succeeded()
+
+        sim.simulator.set_monitor(monitor)
+        try:
+            sim.simulator.Initialize()
+            sim.simulator.AdvanceTo(duration + self.PUSH_SETTLE)
+        except Exception as e:
+            msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+            return PushResult(error=f"simulation failed: {msg}", wall_time=time.perf_counter() - t0)
+        finally:
+            sim.simulator.clear_monitor()
+        objects, moved, errors = list(scene.objects), {}, []
+        x0, x1, y0, y1 = scene.table
+        for i, body in sim.bodies.items():
+            X = plant.EvalBodyPoseInWorld(pc, body)
+            p, R = X.translation(), X.rotation().matrix()
+            if not np.all(np.isfinite(p)):
+                errors.append(f"object {i}: non-finite pose")
+            elif R[2, 2] < np.cos(np.radians(10)):
+                errors.append(f"object {i} tipped over")
+            elif not (x0 <= p[0] <= x1 and y0 <= p[1] <= y1):
+                errors.append(f"object {i} left the table")
+            else:
+                o = scene.objects[i]
+                objects[i] = SceneObject(
+                    o.shape, float(p[0]), float(p[1]), float(np.arctan2(R[1, 0], R[0, 0]))
+                )
+                moved[i] = float(np.hypot(p[0] - o.x, p[1] - o.y))
+        wall = time.perf_counter() - t0
+        t_sim = sim.context.get_time()
+        if errors:
+            return PushResult(moved=moved, error="; ".join(errors), sim_time=t_sim, wall_time=wall)
+        after = replace(scene, objects=objects, group=None)
+        return PushResult(after, moved, "", t_sim, wall)
 
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()

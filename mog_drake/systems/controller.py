@@ -9,6 +9,7 @@ from pydrake.systems.framework import LeafSystem
 
 from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.geometry.polygon import convex_hull_ccw
 from mog_drake.systems.perception import Checked, Perceived, _Immutable
 from mog_drake.systems.planner import Decision
 
@@ -39,6 +40,10 @@ class ControllerState(_Immutable):
     t_end: float | None = None
     t_last: float = 0.0
     retakes: int = 0  # decisions dropped because the table changed after their image
+    # push-mog: the pushes made, in order ({"start", "end", "push", "group", "expected",
+    # "now"}), and the robot time they took (s).
+    pushes: list = field(default_factory=list)
+    push_time: float = 0.0
 
 
 @dataclass
@@ -69,7 +74,16 @@ class ControllerSystem(LeafSystem):
     dropped in transit, one moved by the lift, one found where the arm hid it), the decision
     is dropped and a new image taken there."""
 
-    MOTIONS = {"approach": "close", "lift": "to_bin", "to_bin": "open", "home": "observe"}
+    MOTIONS = {
+        "approach": "close",
+        "lift": "to_bin",
+        "to_bin": "open",
+        "home": "observe",
+        # push-mog: down beside the object with the jaws closed, along the line, up and back
+        "push_approach": "push_line",
+        "push_line": "push_home",
+        "push_home": "wait",
+    }
 
     def __init__(
         self,
@@ -82,6 +96,7 @@ class ControllerSystem(LeafSystem):
         time_limit: float = 600.0,
         config: ControllerConfig | None = None,
         arm_view=None,
+        push_speed: float = 0.05,
     ):
         super().__init__()
         cfg = config or ControllerConfig()
@@ -94,6 +109,7 @@ class ControllerSystem(LeafSystem):
         period = cfg.period
         self._limit = time_limit
         self._arm_view = arm_view
+        self._push_speed = push_speed
         self._q = self.DeclareVectorInputPort("ur5.position_measured", 6)
         self._g = self.DeclareVectorInputPort("gripper.state_measured", 2)
         self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(Decision()))
@@ -116,7 +132,7 @@ class ControllerSystem(LeafSystem):
     def _update(self, context, state) -> None:
         s = self.state(context)
         t = context.get_time()
-        new = ControllerState(**{**s.__dict__, "attempts": list(s.attempts)})
+        new = ControllerState(**{**s.__dict__, "attempts": list(s.attempts), "pushes": list(s.pushes)})
         dt = t - s.t_mode
         if s.mode == "done":
             return
@@ -125,12 +141,17 @@ class ControllerSystem(LeafSystem):
         if s.t_first is not None:
             if s.mode in self.MOTIONS or s.mode in ("close", "open"):
                 new.robot_time += step
+                if s.mode.startswith("push"):
+                    new.push_time += step
             elif s.mode in ("wait", "check"):
                 waiting_for = s.check if s.mode == "check" else s.counter
                 if self._scene.Eval(context).counter < waiting_for:
                     new.wait_perception += step
                 else:
                     new.wait_planning += step
+        if s.mode == "push_home" and s.requested == s.counter and self._image_now(context, s, holding=False):
+            new.requested = s.counter + 1  # the pushed table, as soon as the arm is out of view
+            new.pushes[-1] = {**new.pushes[-1], "next_image": [s.mode, round(dt, 3)]}
         if s.mode in ("lift", "to_bin", "open", "home") and s.requested == s.counter:
             if s.mode in ("open", "home") or self._image_now(context, s):
                 new.requested = s.counter + 1  # the next image, while the arm carries and returns
@@ -157,7 +178,9 @@ class ControllerSystem(LeafSystem):
             d = self._decision.Eval(context)
             if d.counter == s.counter and d.decision is not None:
                 dec = d.decision
-                if dec.status != "grasp":
+                if dec.status == "push":
+                    self._start_push(new, s, d, t)
+                elif dec.status != "grasp":
                     new.mode, new.finished = "done", dec.status
                 else:
                     try:
@@ -202,6 +225,13 @@ class ControllerSystem(LeafSystem):
                 new.mode, new.t_mode = self.MOTIONS[s.mode], t
                 if s.mode == "approach":
                     new.gripper = 0.0
+                if s.mode == "push_home":  # open the jaws, and a new image of the pushed table
+                    new.gripper = self._open
+                    new.pushes[-1] = {**new.pushes[-1], "end": t}
+                    new.plan = None
+                    new.counter = new.requested = (
+                        new.requested if new.requested > s.counter else s.counter + 1
+                    )
                 if s.mode == "home":
                     new.attempts[-1] = {**new.attempts[-1], "end": t}
                     new.plan = None
@@ -221,7 +251,44 @@ class ControllerSystem(LeafSystem):
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
 
-    def _image_now(self, context, s: ControllerState) -> bool:
+    def _start_push(self, new: ControllerState, s: ControllerState, d, t: float) -> None:
+        """Starts the push of decision ``d`` (the jaws close on the way), or skips it as an
+        unreachable grasp is skipped."""
+        dec = d.decision
+        try:
+            new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed)
+        except MogError as e:
+            new.skipped = [
+                *s.skipped,
+                {
+                    "t": t,
+                    "push": dec.push.to_dict(),
+                    "reason": str(e),
+                    "planning_time": dec.planning_time,
+                    "planning_cpu": d.cpu_time,
+                },
+            ]
+            new.unreachable = s.unreachable + 1
+            new.mode, new.t_mode = "observe", t
+            if new.unreachable >= self._max_unreachable:
+                new.mode, new.finished = "done", f"unreachable push ({new.unreachable} in a row): {e}"
+            return
+        new.mode, new.t_mode, new.unreachable, new.gripper = "push_approach", t, 0, 0.0
+        new.pushes.append(
+            {
+                "start": t,
+                "push": dec.push.to_dict(),
+                "group": list(dec.group),
+                "shapes": list(dec.shapes),
+                "expected": list(dec.expected),
+                "now": dec.now,
+                "planning_time": dec.planning_time,
+                "planning_cpu": d.cpu_time,
+                "physics_checks": dec.physics_checks,
+            }
+        )
+
+    def _image_now(self, context, s: ControllerState, holding: bool = True) -> bool:
         """Whether the next image may be taken now, while the arm still carries: it hides
         nothing of the table, or at least none of the objects left on it (the last scene's,
         less the group being carried), and what it carries hangs above what perception looks
@@ -229,15 +296,24 @@ class ControllerSystem(LeafSystem):
         if self._arm_view is None:
             return False
         q = self._q.Eval(context)
-        if self._arm_view(q, holding=True):
+        if self._arm_view(q, holding=holding):
             return True
         scene = self._scene.Eval(context).scene
         if scene is None:
             return False
-        carried = set(s.attempts[-1]["group"]) if s.attempts else set()
+        carried = set(s.attempts[-1]["group"]) if s.attempts and holding else set()
         prisms = [(scene.polygon(i), scene.shape(i).height) for i in range(len(scene)) if i not in carried]
         prisms += [(b["vertices"], b["top"]) for b in scene.meta.get("unrecognised", ())]
-        return self._arm_view.clear_of(q, True, prisms)
+        if not holding and s.pushes:  # the pushed object: anywhere along its push
+            p = s.pushes[-1]["push"]
+            if 0 <= p["target"] < len(scene):
+                v = scene.polygon(p["target"])
+                step = np.subtract(p["end"], p["start"]) / max(
+                    np.hypot(*np.subtract(p["end"], p["start"])), 1e-9
+                )
+                swept = np.vstack([v, v + step * (p["distance"] + 0.01)])
+                prisms.append((convex_hull_ccw(swept), scene.shape(p["target"]).height))
+        return self._arm_view.clear_of(q, holding, prisms)
 
     def _out_q(self, context, output) -> None:
         s = self.state(context)

@@ -19,6 +19,7 @@ from pydrake.solvers import Solve
 from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial
 
 from mog_drake.errors import MogError
+from mog_drake.geometry.push import ease, push_duration
 from mog_drake.sim.ur5 import URDF_PATH, base_transform, palm_in_flange
 
 
@@ -178,5 +179,49 @@ class ArmMotion:
             "lift": self.timed(up, cfg.carry_scale),
             "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
             "home": self.timed([q_bin, q_start]),
+            "yaw": yaw,
+        }
+
+    PUSH_POINTS = 9  # IK points along a push's line
+
+    def push_plan(self, push, q_start, speed: float) -> dict:
+        """Joint trajectories of one push (`mog_drake.geometry.push.Push`; the jaws closed):
+        start -> above the push's start -> down beside the object -> along the line at a mean
+        ``speed`` (m/s) on the cubic ease the physics check simulated (`push_duration`) -> up
+        -> start. The closed jaws are square in plan: the wrist takes whichever quarter turn
+        of the push's yaw turns it least. Raises MogError for a pose the arm cannot reach."""
+        cfg = self.config
+        z = self.finger_height + self.finger_clearance
+        z_above = z + cfg.hover
+        q_start = np.asarray(q_start, float)
+        a, b = np.asarray(push.start, float), np.asarray(push.end, float)
+        best = None
+        for k in range(4):
+            yaw = push.yaw + k * np.pi / 2
+            try:
+                q_above = self.ik([a[0], a[1], z_above], yaw, q_start)
+            except MogError:
+                continue
+            if best is None or np.abs(q_above - q_start).sum() < np.abs(best[1] - q_start).sum():
+                best = (yaw, q_above)
+        if best is None:
+            raise MogError(f"no arm configuration reaches above the push at {np.round(a, 3).tolist()}")
+        yaw, q_above = best
+        down = self.vertical(a, z_above, z, yaw, q_above)
+        T = push_duration(push, speed)
+        times = np.linspace(0.0, T, self.PUSH_POINTS)
+        line, q = [], down[-1]
+        for t in times:
+            s, _ = ease(t / T)
+            q = self.ik([*(a + s * (b - a)), z], yaw, q)
+            line.append(q)
+        along = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+            times, np.array(line).T, np.zeros(6), np.zeros(6)
+        )
+        up = self.vertical(b, z, z_above, yaw, line[-1])
+        return {
+            "push_approach": self.timed([q_start, q_above, *down[1:]]),
+            "push_line": along,
+            "push_home": self.timed([*up, q_start]),
             "yaw": yaw,
         }

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -114,6 +115,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             time_limit=scenario.time_limit,
             config=scenario.controller,
             arm_view=arm_view(scenario, handles.camera_intrinsics),
+            push_speed=scenario.planner.push_speed,
         ),
     )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
@@ -162,6 +164,8 @@ class PickRun:
     cycle_time: float = 0.0
     perception_time: float = 0.0  # wall time of the perception jobs (s)
     retakes: int = 0  # decisions dropped: the table changed after their image
+    pushes: list[dict] = field(default_factory=list)  # push-mog: the pushes made, in order
+    push_time: float = 0.0  # robot time of the pushes (s)
     # Simulation only: where each object not in the bin ended, {id: (where, [x, y, z])} with
     # where "in view" (on the table, inside the perceived region, the camera's image and the
     # arm's reach), "out of view" (on the table, outside them) or "off the table".
@@ -171,7 +175,7 @@ class PickRun:
     def summary(self) -> dict:
         n = len(self.attempts)
         succ = [a for a in self.attempts if (a["picked"] or 0) >= 1]
-        planning = sum(a["planning_time"] for a in [*self.attempts, *self.skipped])
+        planning = sum(a["planning_time"] for a in [*self.attempts, *self.skipped, *self.pushes])
         return {
             "objects": self.objects,
             "attempts": n,
@@ -186,15 +190,31 @@ class PickRun:
             "wait_planning_s": self.wait_planning,
             "planning_time_s": planning,
             # the planning jobs' CPU time: their latency under `latency.mode` cpu
-            "planning_cpu_s": sum(a.get("planning_cpu", 0.0) for a in [*self.attempts, *self.skipped]),
+            "planning_cpu_s": sum(
+                a.get("planning_cpu", 0.0) for a in [*self.attempts, *self.skipped, *self.pushes]
+            ),
             "perception_time_s": self.perception_time,
             "retakes": self.retakes,
+            "pushes": len(self.pushes),
+            "push_time_s": self.push_time,
+            "push_gain": self.push_gain(),
             "wall_time_s": self.wall_time,
             "finished": self.finished,
             "left_in_view": sum(w == "in view" for w, _ in self.left.values()),
             "left_out_of_view": sum(w == "out of view" for w, _ in self.left.values()),
             "left_off_table": sum(w == "off the table" for w, _ in self.left.values()),
         }
+
+    def push_gain(self) -> int:
+        """Objects the pushes gained: for each push, what the next grasp put in the bin beyond
+        what the grasp that was possible without the push lifted in its physics check (0 for
+        a push with no grasp after it)."""
+        gain = 0
+        for p in self.pushes:
+            after = next((a for a in self.attempts if a["start"] >= p.get("end", math.inf)), None)
+            if after is not None and after.get("picked") is not None:
+                gain += after["picked"] - p["now"]
+        return gain
 
 
 class WallClockPacer:
@@ -291,7 +311,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()
-    done_attempts = 0
+    done_attempts = done_pushes = 0
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
@@ -326,6 +346,11 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
             done_attempts += 1
             if on_attempt:
                 on_attempt(len(run.attempts), a)
+        while done_pushes < len(s.pushes) and "end" in s.pushes[done_pushes]:
+            run.pushes.append(dict(s.pushes[done_pushes]))
+            done_pushes += 1
+            if on_attempt:
+                on_attempt(done_pushes, run.pushes[-1])
         if s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0:
             run.finished = s.finished or "time limit"
             run.skipped = list(s.skipped)
@@ -345,6 +370,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     run.cycle_time = (s.t_end if s.t_end is not None else ctx.get_time()) - (s.t_first or 0.0)
     run.perception_time = parts["perception"].wall_total(parts["perception"].GetMyContextFromRoot(ctx))
     run.retakes = s.retakes
+    run.push_time = s.push_time
     return run
 
 
@@ -364,7 +390,16 @@ SUMMARY_COLUMNS = [
 
 
 def attempt_line(k: int, a: dict) -> str:
-    """One attempt of a run as a log line: what was grasped, by shape, and what came of it."""
+    """One attempt of a run as a log line: what was grasped, by shape, and what came of it;
+    or one push (push-mog): what was pushed, how far, and the grasp it set up."""
+    if "push" in a:
+        p = a["push"]
+        shapes = a.get("shapes") or []
+        return (
+            f"push    {k:3d}  {p['distance'] * 1e3:.0f} mm, object {p['target']} to object {p['toward']}: "
+            f"sets up a grasp of {len(a['group'])} ({' + '.join(shapes)}) that lifted {len(a['expected'])} "
+            f"in physics (without the push: {a['now']})  [planning {a['planning_time']:.2f} s]"
+        )
     what = "unrecognised blob(s)" if a.get("unrecognised") else " + ".join(a.get("shapes") or ()) or "?"
     line = f"attempt {k:3d}  grasp of {len(a['group'])}: {what}"
     if a.get("carried") is not None:

@@ -31,6 +31,7 @@ class Decision(_Immutable):
     wall_time: float = 0.0  # the planning job's wall time (s)
     cpu_time: float = 0.0  # the planning job's CPU time (s)
     previous: Decision | None = None  # the state this one was planned from
+    pushes: int = 0  # push-mog: pushes decided so far, this one included
 
 
 class PlannerSystem(LeafSystem):
@@ -103,6 +104,7 @@ class PlannerSystem(LeafSystem):
                 job.wall_time(),
                 job.cpu_time(),
                 dataclasses.replace(base, previous=None),  # one step back is all a retake needs
+                base.pushes + (d.status == "push"),
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
@@ -121,13 +123,14 @@ class PlannerSystem(LeafSystem):
             base.recent,
             base.failures if self._spec.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
+            self._spec.max_pushes - base.pushes,
             t_request=t,
             counter=p.counter,
             info=(base, len(p.scene)),
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left):
         d = next_pick(
             scene,
             self._planner,
@@ -136,6 +139,7 @@ class PlannerSystem(LeafSystem):
             avoid=avoid,
             failures=failures,
             grasp_unrecognised=grasp_unrecognised,
+            pushes_left=pushes_left,
         )
         return d, rng
 
