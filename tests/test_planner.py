@@ -449,3 +449,44 @@ def test_a_failed_group_is_not_planned_again_while_its_surroundings_are_unchange
     v.asked.clear()
     d5 = next_pick(make_scene(bars[::-1]), planner)
     assert d5.failures == () and d5.remembered == 0 and len(v.asked) == 2
+
+
+def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_if_nothing_moved():
+    """A decision grasps the cube; the lookahead plans the table without it and finds the
+    hexagon's grasp. In the next image (the cube gone, ids in another order) that grasp is
+    taken with no physics check. Had the grasp pushed the hexagon 5 mm, it is planned again."""
+    from dataclasses import replace
+
+    from mog_drake.planning.config import PlannerSpec
+    from mog_drake.planning.picking import lookahead, next_pick
+
+    cube = ("small_yellow_cube", 0.0, 0.0, 0.0)
+    hexagon = ("large_hexagon", 0.15, 0.1, 0.3)
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(np.asarray(grasp).copy())
+            return GraspResult(True, lifted=list(group))
+
+    v = LiftsAnything()
+    planner = GraspPlanner(v, PlannerSpec().grasp_planner())
+    spec = PlannerSpec(mode="mog")
+    first = make_scene([cube, hexagon])
+    d1 = next_pick(first, planner, spec, failures=())
+    assert d1.status == "grasp" and d1.group in ((0,), (1,))
+    grasped, other = d1.group[0], 1 - d1.group[0]
+    memory = lookahead(first, d1, planner, spec)
+    assert memory and memory[0].result.found and len(v.asked) == 2  # one check now, one ahead
+
+    v.asked.clear()
+    left = replace(first, objects=[first.objects[other]])
+    d2 = next_pick(left, planner, spec, failures=memory)
+    assert v.asked == [] and d2.physics_checks == 0 and d2.remembered == 1
+    assert d2.status == "grasp" and d2.group == (0,)
+    np.testing.assert_allclose(d2.grasp, memory[0].result.grasp)
+
+    o = first.objects[other]
+    moved = replace(first, objects=[replace(o, x=o.x + 0.005)])
+    d3 = next_pick(moved, planner, spec, failures=memory)
+    assert len(v.asked) == 1 and d3.remembered == 0 and d3.status == "grasp"
+    assert first.objects[grasped] != o

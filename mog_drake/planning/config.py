@@ -63,6 +63,12 @@ class PlannerSpec:
     # Before the run ends on "no grasp found", plan every group again with up to 12 more
     # physics checks each, 48 in all (an extension).
     last_resort: bool = True
+    # Plan ahead (an extension; mog and push-mog, with remember_failures): once a grasp is
+    # decided, the next decision is planned on the same image without the objects it grasps,
+    # on a second worker, while the arm executes it. In the next image, every group whose
+    # surroundings are where they were (3 mm) is replayed from that plan with no physics: its
+    # failure, or its grasp. Only the groups the grasp disturbed are simulated again.
+    lookahead: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.

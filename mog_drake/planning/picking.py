@@ -26,6 +26,7 @@ from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
+from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
 # A remembered failure applies while every object within reach of its group is where it was
@@ -45,9 +46,10 @@ ADJACENT_GAP = PUSH_GAP + 0.004  # m
 
 @dataclass(frozen=True, eq=False)  # compared by identity (it holds arrays)
 class FailedGroup:
-    """A group the planner found no grasp for, with what the physics check saw. ``around``
-    holds (id, shape, vertices) of every object within reach of the group then: the check's
-    verdict depends on nothing else, so while they are all where they were it stands."""
+    """A group the planner found no grasp for, with what the physics check saw, or (``result``
+    found: the lookahead's, see `lookahead`) the grasp it found. ``around`` holds (id, shape,
+    vertices) of every object within reach of the group then: the check's verdict depends on
+    nothing else, so while they are all where they were it stands."""
 
     group: tuple[int, ...]
     around: tuple
@@ -79,9 +81,23 @@ def _match(old: tuple, new: tuple, tol: float = MEMORY_TOL) -> dict[int, int] | 
     return ids
 
 
-def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=()) -> PlanResult:
+def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=()) -> PlanResult | None:
     """The remembered plan, in the new scene's object ids, with no physics run now. Its partial
-    lift is dropped if it repeats a grasp to avoid (the robot just tried it)."""
+    lift is dropped if it repeats a grasp to avoid (the robot just tried it). A remembered
+    grasp that was found (the lookahead's, see `lookahead`) is None if it repeats one: plan
+    the group again."""
+    if f.result.found:
+        if repeats([f.result.grasp], avoid)[0]:
+            return None
+        lifted = f.result.result.lifted if f.result.result is not None else f.group
+        return replace(
+            f.result,
+            group=tuple(group),
+            tested=0,
+            tested_indices=[],
+            best_lift=None,
+            result=GraspResult(True, lifted=[ids[i] for i in lifted if i in ids]),
+        )
     lift = f.result.best_lift
     if lift is not None and repeats([lift[0]], avoid)[0]:
         lift = None
@@ -252,8 +268,9 @@ def next_pick(
                 if len(f.group) == len(group) and (ids := _match(f.around, around)) is not None:
                     if set(ids[i] for i in f.group) == set(group):
                         res = _replay(f, ids, group, avoid)
-                        decision.remembered += 1
                         del pending[k]
+                        if res is not None:
+                            decision.remembered += 1
                         break
         if res is None:
             res = planner.plan(scene, group, rng=rng, avoid=avoid)
@@ -278,6 +295,47 @@ def next_pick(
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def lookahead(
+    scene,
+    decision: PickDecision,
+    planner: GraspPlanner,
+    spec: PlannerSpec,
+    rng=None,
+    avoid=(),
+    grasp_unrecognised: bool = True,
+) -> tuple[FailedGroup, ...]:
+    """What the next decision can reuse, planned before its image (an extension; see
+    `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
+    without the objects ``decision`` grasps, as if they were gone and nothing else had moved,
+    plus the grasp it found there. In the next image, each group whose surroundings are
+    where they were is replayed from it with no physics (its failure, or its grasp); the
+    groups the grasp disturbed are planned again. No pushes are considered here."""
+    gone = set(decision.group) | set(decision.expected)
+    rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
+    if len(rest) == 0:
+        return ()
+    ahead = next_pick(
+        rest,
+        planner,
+        replace(spec, mode="mog") if spec.mode == "push-mog" else spec,
+        rng,
+        avoid,
+        decision.failures,
+        grasp_unrecognised,
+        adjacent=ADJACENT_GAP if spec.mode == "push-mog" else 0.0,
+    )
+    memory = list(ahead.failures)
+    found = ahead.plans[-1] if ahead.plans else None
+    if (
+        ahead.status == "grasp"
+        and not (ahead.partial or ahead.unrecognised)
+        and found is not None
+        and found.found
+    ):
+        memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
+    return tuple(memory[:MEMORY_SIZE])
 
 
 def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid) -> None:

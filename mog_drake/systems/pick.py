@@ -91,7 +91,13 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     planner_sys = builder.AddNamedSystem(
         "planner",
         PlannerSystem(
-            make_planner(scenario, verifier), scenario.planner, period, latency=scenario.latency, block=block
+            make_planner(scenario, verifier),
+            scenario.planner,
+            period,
+            latency=scenario.latency,
+            block=block,
+            # A test's verifier (stateless) serves both; the physics check is one per thread.
+            ahead_planner=make_planner(scenario, verifier),
         ),
     )
     g = scenario.gripper

@@ -12,7 +12,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, next_pick
+from mog_drake.planning.picking import PickDecision, lookahead, next_pick
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -54,20 +54,31 @@ class PlannerSystem(LeafSystem):
         period: float = 0.01,
         latency: LatencyConfig | None = None,
         block: bool = True,
+        ahead_planner=None,
     ):
         super().__init__()
         self._planner = planner
+        # The lookahead's own planner (its physics check keeps a built plant: one per thread).
+        self._ahead_planner = ahead_planner
         self._spec = spec or PlannerSpec()
         self._spec.check()
         latency = latency or LatencyConfig()
         self._latency = latency.of("planning")
         self._block = block
         self._worker = Worker("planner", latency.clock)
+        self._ahead_worker = Worker("lookahead", latency.clock)
+        self._lookahead = (
+            ahead_planner is not None
+            and self._spec.lookahead
+            and self._spec.remember_failures
+            and self._spec.mode in ("mog", "push-mog")
+        )
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -78,14 +89,16 @@ class PlannerSystem(LeafSystem):
 
     def shutdown(self) -> None:
         self._worker.shutdown()
+        self._ahead_worker.shutdown()
 
     def _update(self, context, state) -> None:
         t = context.get_time()
         cur = context.get_abstract_state(self._state).get_value()
         job = context.get_abstract_state(self._job).get_value().job
         if job is not None and job.visible(t, self._latency, self._block):
+            job_counter = job.counter
             d, rng = job.result()
-            base, n_objects = job.info
+            base, n_objects, scene = job.info
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
             if d.status == "grasp":
                 blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
@@ -109,6 +122,19 @@ class PlannerSystem(LeafSystem):
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
             job = None
+            if self._lookahead and d.status == "grasp" and not d.unrecognised:
+                ahead = self._ahead_worker.submit(
+                    lookahead,
+                    scene,
+                    d,
+                    self._ahead_planner,
+                    self._spec,
+                    copy.deepcopy(rng),
+                    cur.recent,
+                    t_request=t,
+                    counter=job_counter,
+                )
+                state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
         p = self._scene.Eval(context)
         last = job.counter if job is not None else cur.counter
         if job is not None or p.scene is None or p.counter <= last:
@@ -116,17 +142,26 @@ class PlannerSystem(LeafSystem):
         # A retake replaces a decision that was never executed: plan from the state before it.
         base = cur.previous if p.retake and cur.previous is not None else cur
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
+        memory = base.failures
+        ahead = context.get_abstract_state(self._ahead).get_value().job
+        if ahead is not None:
+            # The lookahead's memory if it is done by now (it planned the table this image
+            # shows, less the objects grasped since); else it is dropped, and its thread
+            # finishes it unused.
+            if ahead.counter == cur.counter and ahead.future.done() and ahead.future.exception() is None:
+                memory = ahead.result()
+            state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         job = self._worker.submit(
             self._plan,
             p.scene,
             rng,
             base.recent,
-            base.failures if self._spec.remember_failures else None,
+            memory if self._spec.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.max_pushes - base.pushes,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene)),
+            info=(base, len(p.scene), p.scene),
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
