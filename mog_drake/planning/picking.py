@@ -23,7 +23,7 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import objects_in_reach, ranked_groups
 from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
-from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates
+from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates, push_duration
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.planning.protocol import GraspResult
@@ -341,8 +341,9 @@ def lookahead(
 def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid) -> None:
     """push-mog: turns decision ``d`` (Alg. 1's) into a push when the push and the grasp it
     sets up are expected to take more objects per second of robot time than ``d``'s grasp:
-    m / (push_time_s + grasp_time_s) > n / grasp_time_s, n being what ``d``'s grasp lifted in
-    the physics check and m what the grasp after the push lifted.
+    m / (push_time_s + T + grasp_time_s) > n / grasp_time_s, n being what ``d``'s grasp
+    lifted in the physics check, m what the grasp after the push lifted, and T the push's
+    own time along its line (`push_duration`).
 
     Candidates (`push_candidates`): an object pushed along the line of centres to another one,
     joining the largest group (of Alg. 1's, on this table) that holds the other one and not
@@ -365,7 +366,7 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         group = tuple(sorted((p.target, *joined)))
         if polys.d_fmin[list(group)].sum() > w_g:
             continue
-        if len(group) / (tp + tg) > n_now / tg:
+        if len(group) / (tp + push_duration(p, spec.push_speed) + tg) > n_now / tg:
             options.append((-len(group), p.distance, p, group))
     options.sort(key=lambda o: o[:2])
     best, checks = None, 0
@@ -381,7 +382,7 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
             lifted = tuple(res.best_lift[1])
         else:
             continue
-        rate = len(lifted) / (tp + tg)
+        rate = len(lifted) / (tp + push_duration(p, spec.push_speed) + tg)
         if rate > n_now / tg and (best is None or len(lifted) > len(best[1])):
             best = (p, lifted, group)
             if len(lifted) >= len(group):  # the largest group first: none to come lifts more
