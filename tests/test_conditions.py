@@ -7,6 +7,7 @@ from conftest import make_scene
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mog_drake.errors import MogError
 from mog_drake.geometry import (
     GripperGeometry,
     candidate_grasps,
@@ -240,3 +241,74 @@ def test_squeeze_basins_of_a_bar_and_a_square():
     cube = make_scene([("small_yellow_cube", 0.0, 0.0, 0.0)]).polygon(0)
     _, m = squeeze_basins(cube, np.linspace(0, np.pi, 13))
     np.testing.assert_allclose(np.degrees(m), 45.0, atol=0.2)
+
+
+def test_frictional_columns_admit_objects_side_by_side_across_the_jaws():
+    """Two 25 mm cubes side by side across the plates (2 mm apart in y): h0 = 25 mm, the
+    paper's h_fmin = 50 mm fails, but each cube stands in its own column (25 mm) and passes.
+    In a row along the closing axis they are one column: 50 mm, as the paper's."""
+    side = make_scene([("small_yellow_cube", 0.0, -0.0135, 0.0), ("small_yellow_cube", 0.0, 0.0135, 0.0)])
+    ev = evaluate_grasps(side.polygons(), [0, 1], np.array([[0.0, 0.0, 0.0]]), columns=True)
+    assert ev.h0[0] == pytest.approx(0.025) and ev.h_fmin == pytest.approx(0.050)
+    assert not ev.diameter_ok[0] and ev.h_fmin_columns[0] == pytest.approx(0.025)
+    assert ev.diameter_ok_columns[0] and ev.passed_columns[0] and not ev.passed[0]
+    row = make_scene([("small_yellow_cube", -0.0135, 0.0, 0.0), ("small_yellow_cube", 0.0135, 0.0, 0.0)])
+    ev = evaluate_grasps(row.polygons(), [0, 1], np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.5]]), columns=True)
+    np.testing.assert_allclose(ev.h_fmin_columns, 0.050)
+    np.testing.assert_array_equal(ev.diameter_ok_columns, ev.diameter_ok)
+
+
+def test_columns_match_a_shapely_reckoning_on_cluttered_tables():
+    """h_fmin_columns, batched, against shapely: each group object's part in S, its y-range,
+    overlapping ranges summed into columns, the widest kept."""
+    import shapely
+
+    from mog_drake.geometry import create_obj_groups, gen_grasp_cands
+    from mog_drake.geometry.gripper import to_grasp_frame
+    from mog_drake.scenes import cluttered_scene
+
+    g = GripperGeometry()
+    box = shapely.box(-g.w_g / 2, -g.plate_width / 2, g.w_g / 2, g.plate_width / 2)
+    checked = 0
+    for seed in range(3):
+        scene = cluttered_scene(np.random.default_rng(seed))
+        polys = scene.polygons()
+        for group in [grp for grp in create_obj_groups(polys.centers) if len(grp) > 1][:4]:
+            cands = gen_grasp_cands(polys, group, g, 40, 7)
+            ev = evaluate_grasps(polys, group, cands, g, columns=True)
+            for b, grasp in enumerate(cands):
+                spans = []
+                for i in group:
+                    part = shapely.Polygon(
+                        to_grasp_frame(polys.polygon(i)[None], grasp[None])[0]
+                    ).intersection(box)
+                    if part.area > 1e-10:
+                        spans.append((part.bounds[1], part.bounds[3], polys.d_fmin[i]))
+                best, end, run = 0.0, -np.inf, 0.0
+                for lo, hi, d in sorted(spans):
+                    run, end = (run + d, max(end, hi)) if lo < end - 1e-9 else (d, hi)
+                    best = max(best, run)
+                assert ev.h_fmin_columns[b] == pytest.approx(best, abs=1e-9), (seed, group, b)
+                checked += 1
+    assert checked > 100
+
+
+def test_the_planner_filters_with_the_diameter_condition_it_is_given():
+    """The side-by-side cubes: with `diameter="columns"` more candidates of the pair pass the
+    filter than with the paper's condition (the grasps across both, closing along x)."""
+    from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+    from mog_drake.planning.protocol import GraspResult
+
+    class LiftsAnything:
+        def check(self, scene, group, grasp):
+            return GraspResult(True, lifted=list(group))
+
+    side = make_scene([("small_yellow_cube", 0.0, -0.0135, 0.0), ("small_yellow_cube", 0.0, 0.0135, 0.0)])
+    paper = GraspPlanner(LiftsAnything(), PlannerConfig()).plan(side, [0, 1])
+    columns = GraspPlanner(LiftsAnything(), PlannerConfig(diameter="columns")).plan(side, [0, 1])
+    ev = evaluate_grasps(side.polygons(), [0, 1], columns.candidate_grasps, columns=True)
+    assert paper.passed_conditions == int(ev.passed.sum())
+    assert columns.passed_conditions == int(ev.passed_columns.sum()) > paper.passed_conditions
+    assert columns.found and columns.tested == 1
+    with pytest.raises(MogError, match="diameter"):
+        PlannerConfig(diameter="friction")

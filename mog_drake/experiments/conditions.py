@@ -97,14 +97,18 @@ COLUMNS = [
     "tn_either_pct",
     "tn_both_pct",
     "false_negatives",
+    "tn_columns_pct",
+    "false_negatives_columns",
     "ejected",
     "physics_errors",
 ]
 
 # Counters per class: candidates, negatives, negatives rejected by area / by diameter / by
 # either / by both, results with a physics fault, false negatives, results where an object was
-# squeezed off the table (a failure, not a fault).
-_N = 9
+# squeezed off the table (a failure, not a fault); with the frictional diameter condition
+# (`GraspEvaluation.diameter_ok_columns`) in place of the paper's: negatives rejected by it or
+# the area condition, and false negatives.
+_N = 11
 
 
 def is_fault(error: str) -> bool:
@@ -123,7 +127,8 @@ def summarize(results: list[dict]) -> dict:
     for c in sorted(by_class):
         k = np.zeros(_N, dtype=int)
         for r in by_class[c]:
-            for x, y, th, d_ok, a_ok, success, err in r["candidates"]:
+            columns = _columns_ok(r)
+            for (x, y, th, d_ok, a_ok, success, err), c_ok in zip(r["candidates"], columns):
                 k[0] += 1
                 if is_fault(err):  # no ground truth: neither a negative nor a positive
                     k[6] += 1
@@ -135,8 +140,10 @@ def summarize(results: list[dict]) -> dict:
                     k[3] += not d_ok
                     k[4] += (not a_ok) or (not d_ok)
                     k[5] += (not a_ok) and (not d_ok)
+                    k[9] += (not a_ok) or (not c_ok)
                 elif not (a_ok and d_ok):
                     k[7] += 1
+                    k[10] += not (a_ok and c_ok)
                     false_negatives.append(
                         {
                             "class": c,
@@ -155,6 +162,19 @@ def summarize(results: list[dict]) -> dict:
     if results:
         rows.append(_row("all", totals, [r["n_candidates"] for r in results]))
     return {"rows": rows, "false_negatives": false_negatives}
+
+
+def _columns_ok(r: dict) -> np.ndarray:
+    """The frictional diameter condition's verdict on each recorded candidate of a scene's
+    result (geometry only: the row scene is generated again from its seed)."""
+    from mog_drake.geometry import evaluate_grasps
+    from mog_drake.scenes import row_scene
+
+    if not r["candidates"]:
+        return np.zeros(0, dtype=bool)
+    scene = row_scene(r["class"], np.random.default_rng(r["scene_seed"]))
+    grasps = np.array([c[:3] for c in r["candidates"]], dtype=float)
+    return evaluate_grasps(scene.polygons(), scene.group, grasps, columns=True).diameter_ok_columns
 
 
 def explain_false_negatives(false_negatives: list[dict], verifier=None) -> list[dict]:
@@ -230,6 +250,8 @@ def _row(label: str, k: np.ndarray, n_cands: list[int]) -> dict:
         "tn_either_pct": 100 * k[4] / neg,
         "tn_both_pct": 100 * k[5] / neg,
         "false_negatives": int(k[7]),
+        "tn_columns_pct": 100 * k[9] / neg,
+        "false_negatives_columns": int(k[10]),
         "ejected": int(k[8]),
         "physics_errors": int(k[6]),
     }

@@ -8,7 +8,9 @@ For a batch of grasps u = (x, y, theta) and a group of objects this computes, al
 * h_fmin = sum of the group's d_fmin (Eq. 6);
 * the diameter condition h0 >= h_fmin (Eq. 7) and the relaxed area condition A_i(0) > 0 for
   every group object (Eq. 9);
-* whether either jaw collides with any object, in the group or not (GenGraspCands, Sec. 6.2).
+* whether either jaw collides with any object, in the group or not (GenGraspCands, Sec. 6.2);
+* an extension, the frictional diameter condition h0 >= h_fmin_columns (see
+  `GraspEvaluation.diameter_ok_columns`).
 
 Objects outside the group whose material lies inside S are allowed: the closing jaws push them
 too, so they may be lifted as a bonus. They bound the jaws' travel, so they count in b_l, b_r
@@ -67,6 +69,9 @@ class GraspEvaluation:
     h_fmin: float
     collision_free: np.ndarray  # (B,) bool
     in_s: np.ndarray  # (B, M) bool: object has material inside S
+    # (B,) the largest summed d_fmin of one column: group objects whose parts in S overlap
+    # across the jaws (in y, the plates' width) are one column, lined up between the jaws.
+    h_fmin_columns: np.ndarray | None = None
 
     @property
     def area_total(self) -> np.ndarray:
@@ -76,6 +81,29 @@ class GraspEvaluation:
     @property
     def diameter_ok(self) -> np.ndarray:
         return self.h0 >= self.h_fmin - LENGTH_TOL
+
+    @property
+    def diameter_ok_columns(self) -> np.ndarray:
+        """The frictional diameter condition (an extension): h0 >= h_fmin_columns.
+
+        The paper's h_fmin sums every group object's d_fmin: frictionless jaws let the
+        objects slide along the plates until they line up in one row between them. With
+        friction at the plates (mu 0.5 here), an object pinched stays where it is across
+        them: objects side by side across the plates' width each stand between the jaws in
+        their own column, held by jaw friction. Assuming each column keeps its objects (no
+        object slides from one column to another) and lines them up between the jaws, the
+        jaws stop no narrower than the widest column: h_f >= max over columns of the
+        column's summed d_fmin, and since the jaws only close, h0 >= h_f. Necessary under
+        these assumptions, not for a frictionless grasp; where every object overlaps every
+        other across the plates there is one column and it is the paper's condition."""
+        if self.h_fmin_columns is None:
+            raise ValueError("evaluate_grasps(..., columns=True) computes h_fmin_columns")
+        return self.h0 >= self.h_fmin_columns - LENGTH_TOL
+
+    @property
+    def passed_columns(self) -> np.ndarray:
+        """`passed` with the frictional diameter condition in place of the paper's."""
+        return self.collision_free & self.diameter_ok_columns & self.area_ok
 
     @property
     def area_ok(self) -> np.ndarray:
@@ -101,6 +129,7 @@ class GraspEvaluation:
             h_fmin=self.h_fmin,
             collision_free=self.collision_free[idx],
             in_s=self.in_s[idx],
+            h_fmin_columns=None if self.h_fmin_columns is None else self.h_fmin_columns[idx],
         )
 
     def verdict(self, i: int) -> str:
@@ -164,9 +193,11 @@ def jaw_collision_free(polys: PolygonSet, grasps, gripper: GripperGeometry | Non
 
 
 def evaluate_grasps(
-    polys: PolygonSet, group, grasps, gripper: GripperGeometry | None = None
+    polys: PolygonSet, group, grasps, gripper: GripperGeometry | None = None, columns: bool = False
 ) -> GraspEvaluation:
-    """Evaluates grasps (B, 3) on ``group`` against every object of ``polys``, vectorized."""
+    """Evaluates grasps (B, 3) on ``group`` against every object of ``polys``, vectorized;
+    with ``columns``, also the frictional diameter condition's h_fmin_columns (about a third
+    more time)."""
     gripper = gripper or GripperGeometry()
     grasps = np.atleast_2d(np.asarray(grasps, dtype=float))
     group = np.asarray(group, dtype=int)
@@ -205,7 +236,37 @@ def evaluate_grasps(
         h_fmin=float(polys.d_fmin[group].sum()),
         collision_free=~collision,
         in_s=in_s,
+        h_fmin_columns=_columns(polys, group, P, bi, mi, need, gripper, B) if columns else None,
     )
+
+
+def _columns(polys, group, P, bi, mi, need, gripper, B) -> np.ndarray:
+    """h_fmin_columns of each of B grasps: each group object's extent across the plates (y)
+    within S; the group's objects swept in order of that extent's start, overlapping ones
+    summed into a column; the largest sum kept."""
+    hw, M = gripper.w_g / 2, len(polys)
+    hy = gripper.plate_width / 2
+    ylo, yhi, has_y = strip_extent(P[need][..., ::-1], -hw, hw)
+    pos = np.full(M, -1)
+    pos[group] = np.arange(len(group))
+    lo = np.full((B, len(group)), np.inf)
+    hi = np.full((B, len(group)), np.inf)
+    ok_y = has_y & (np.minimum(yhi, hy) - np.maximum(ylo, -hy) > LENGTH_TOL)
+    lo[bi[need][ok_y], pos[mi[need][ok_y]]] = np.maximum(ylo[ok_y], -hy)
+    hi[bi[need][ok_y], pos[mi[need][ok_y]]] = np.minimum(yhi[ok_y], hy)
+    order = np.argsort(lo, axis=1)
+    lo, hi = np.take_along_axis(lo, order, 1), np.take_along_axis(hi, order, 1)
+    d = polys.d_fmin[group][order]
+    best = np.zeros(B)
+    run = np.zeros(B)
+    end = np.full(B, -np.inf)
+    for k in range(len(group)):
+        real = np.isfinite(lo[:, k])
+        same = real & (lo[:, k] < end - LENGTH_TOL)
+        run = np.where(same, run + d[:, k], np.where(real, d[:, k], run))
+        end = np.where(same, np.maximum(end, hi[:, k]), np.where(real, hi[:, k], end))
+        best = np.maximum(best, run)
+    return best
 
 
 def grasp_failure(ev: GraspEvaluation) -> np.ndarray:

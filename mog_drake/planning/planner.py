@@ -31,6 +31,7 @@ from mog_drake.geometry.polygon import axis_gap, squeeze_basins
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
+DIAMETER_CONDITIONS = ("paper", "columns")
 _RANKED = {"gp": True, "rand-phys": False, "rank-phys": True, "rand-fil-phys": False, "single": True}
 _FILTERED = {"gp": True, "rand-phys": False, "rank-phys": False, "rand-fil-phys": True, "single": True}
 
@@ -58,10 +59,17 @@ class PlannerConfig:
     # intersection area breaking ties. Area alone prefers the longest grip: a bar lying on its
     # side held end to end, which slips.
     lone_widest_basin: bool = False
+    # The diameter condition the filter applies: "paper" (h0 >= h_fmin, Eq. 7) or, an
+    # extension, "columns" (the frictional h0 >= h_fmin_columns, see
+    # GraspEvaluation.diameter_ok_columns): it admits objects held side by side by the
+    # jaws' friction.
+    diameter: str = "paper"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise MogError(f"unknown planner method '{self.method}' (known: {', '.join(METHODS)})")
+        if self.diameter not in DIAMETER_CONDITIONS:
+            raise MogError(f"diameter must be one of {', '.join(DIAMETER_CONDITIONS)}, got {self.diameter!r}")
         if self.n_positions < 1 or self.n_orientations < 1:
             raise MogError("n_positions and n_orientations must be at least 1")
         if not 0 <= self.min_squeeze_margin < math.pi / 2:
@@ -189,8 +197,8 @@ class GraspPlanner:
         n_passed = -1
         if _RANKED[method] or _FILTERED[method]:
             t = time.perf_counter()
-            ev = evaluate_grasps(polys, group, cands, self.gripper)
-            passed = ev.passed
+            ev = evaluate_grasps(polys, group, cands, self.gripper, columns=cfg.diameter == "columns")
+            passed = ev.passed if cfg.diameter == "paper" else ev.passed_columns
             n_passed = int(passed.sum())
             times["filter" if _FILTERED[method] else "rank"] += time.perf_counter() - t
         if _RANKED[method]:
