@@ -105,7 +105,8 @@ class ConsolidatingPhysics:
         dx, dy = push.direction * push.distance
         objects = list(scene.objects)
         objects[push.target] = SceneObject(o.shape, o.x + dx, o.y + dy, o.theta)
-        return PushResult(replace(scene, objects=objects), {push.target: push.distance})
+        self.after = replace(scene, objects=objects)
+        return PushResult(self.after, {push.target: push.distance})
 
 
 def _decide(scene, pushes_left=5, **spec):
@@ -122,12 +123,17 @@ def _decide(scene, pushes_left=5, **spec):
 
 
 def test_push_mog_pushes_when_the_push_and_its_grasp_beat_the_grasp_now():
-    """Two bars apart: a grasp now lifts 1 (in 6.5 s of robot time); a push (4 s) sets up a
-    grasp of 2: 2 / 10.5 > 1 / 6.5, so it pushes."""
+    """Two bars apart: a grasp now lifts 1 (in 6.5 s of robot time); a push (1.5 s and 0.54 s
+    along its 27 mm) sets up a grasp of 2: 2 / 8.54 > 1 / 6.5, so it pushes. The decision
+    carries the grasp that follows (found on the table the simulated push left), unless the
+    arm is to look again after the push."""
     d, physics = _decide(make_scene(BARS))
     assert d.status == "push" and isinstance(d.push, Push)
     assert set(d.group) == {0, 1} and set(d.expected) == {0, 1} and d.now == 1
-    assert d.grasp is None and len(physics.pushes) >= 1
+    assert d.grasp is not None and len(physics.pushes) >= 1
+    assert ConsolidatingPhysics().check(physics.after, (0, 1), d.grasp).success
+    d, _ = _decide(make_scene(BARS), push_then_grasp=False, push_time_s=3.1)
+    assert d.status == "push" and d.grasp is None
 
 
 def test_push_mog_grasps_when_pushing_does_not_pay_or_no_push_is_left():
@@ -163,9 +169,11 @@ def test_a_simulated_push_moves_its_object_where_the_geometry_said_on_a_table_wi
     assert r.moved.get(1, 0.0) < 0.001  # the other bar did not move
 
 
-def test_the_controller_pushes_on_the_station_then_grasps_the_pair(tmp_path):
+@pytest.mark.parametrize("then_grasp", [True, False])
+def test_the_controller_pushes_on_the_station_then_grasps_the_pair(tmp_path, then_grasp):
     """push-mog end to end on the simulated station: the two bars 45 mm apart are pushed
-    together (one push, the jaws closed at grasp height), then lifted together by one grasp."""
+    together (one push, the jaws closed at grasp height), then lifted together by one grasp:
+    at once, where the planner's physics check left them, or after a new image."""
     from mog_drake.scenario import Scenario, SceneFile
     from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.pick import run_pick
@@ -177,12 +185,14 @@ def test_the_controller_pushes_on_the_station_then_grasps_the_pair(tmp_path):
         time_limit=60.0,
     )
     sc.planner.mode = "push-mog"
+    sc.planner.push_then_grasp = then_grasp
     run = run_pick(sc)
     assert len(run.pushes) == 1
     p = run.pushes[0]
     assert p["end"] > p["start"] and set(p["group"]) == {0, 1} and p["now"] == 1
     assert len(run.attempts) == 1 and run.attempts[0]["picked"] == 2
     assert run.attempts[0]["start"] >= p["end"]
+    assert run.attempts[0].get("after_push", False) == then_grasp
     s = run.summary()
     assert s["pushes"] == 1 and s["push_gain"] == 1 and s["picked_pct"] == 100.0
     assert 0 < s["push_time_s"] < s["robot_time_s"]

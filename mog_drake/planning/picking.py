@@ -136,8 +136,9 @@ class PickDecision:
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup, ...] = ()
     # push-mog: the push to make (`mog_drake.geometry.push.Push`); ``group`` is then the group
-    # it sets up and ``expected`` what the physics check lifted with that group's grasp after
-    # the push; ``now``: the objects the grasp that was possible without it lifted.
+    # it sets up, ``expected`` what the physics check lifted with that group's grasp after the
+    # push, and ``grasp`` that grasp if it is to follow at once (planner.push_then_grasp);
+    # ``now``: the objects the grasp that was possible without the push lifted.
     push: Push | None = None
     now: int = 0
 
@@ -377,20 +378,21 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         res = planner.plan(r.scene, group, rng=rng, avoid=avoid)
         checks += res.tested
         if res.found:
-            lifted = tuple(res.result.lifted)
+            grasp, lifted = res.grasp, tuple(res.result.lifted)
         elif res.best_lift is not None:
-            lifted = tuple(res.best_lift[1])
+            grasp, lifted = res.best_lift[0], tuple(res.best_lift[1])
         else:
             continue
         rate = len(lifted) / (tp + push_duration(p, spec.push_speed) + tg)
         if rate > n_now / tg and (best is None or len(lifted) > len(best[1])):
-            best = (p, lifted, group)
+            best = (p, lifted, group, grasp)
             if len(lifted) >= len(group):  # the largest group first: none to come lifts more
                 break
     d.physics_checks += checks
     if best is not None:
         d.now, d.push = n_now, best[0]
-        d.status, d.group, d.expected, d.grasp = "push", best[2], best[1], None
+        d.status, d.group, d.expected = "push", best[2], best[1]
+        d.grasp = best[3] if spec.push_then_grasp else None
         d.shapes = tuple(scene.objects[i].shape for i in d.group)
         d.partial = d.last_resort = False
     d.planning_time += time.perf_counter() - t0

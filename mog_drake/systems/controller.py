@@ -81,7 +81,8 @@ class ControllerSystem(LeafSystem):
         "home": "observe",
         # push-mog: down beside the object with the jaws closed, along the line, up and back
         "push_approach": "push_line",
-        "push_line": "push_home",
+        "push_line": "push_up",
+        "push_up": "push_home",  # or, with a grasp to follow at once, "push_open"
         "push_home": "wait",
     }
 
@@ -139,7 +140,7 @@ class ControllerSystem(LeafSystem):
         # The interval since the last update, by what the arm did in it.
         step, new.t_last = t - s.t_last, t
         if s.t_first is not None:
-            if s.mode in self.MOTIONS or s.mode in ("close", "open"):
+            if s.mode in self.MOTIONS or s.mode in ("close", "open", "push_open"):
                 new.robot_time += step
                 if s.mode.startswith("push"):
                     new.push_time += step
@@ -225,6 +226,9 @@ class ControllerSystem(LeafSystem):
                 new.mode, new.t_mode = self.MOTIONS[s.mode], t
                 if s.mode == "approach":
                     new.gripper = 0.0
+                if s.mode == "push_up" and s.plan.get("then") is not None:
+                    new.mode, new.gripper = "push_open", self._open  # open above the objects
+                    new.pushes[-1] = {**new.pushes[-1], "end": t}
                 if s.mode == "push_home":  # open the jaws, and a new image of the pushed table
                     new.gripper = self._open
                     new.pushes[-1] = {**new.pushes[-1], "end": t}
@@ -245,18 +249,49 @@ class ControllerSystem(LeafSystem):
             new.mode, new.t_mode = "lift", t
         elif s.mode == "open" and dt >= self._open_time:
             new.mode, new.t_mode = "home", t
+        elif s.mode == "push_open" and dt >= self._open_time:
+            self._grasp_after_push(new, s, t)
         if s.mode == "to_bin" and new.mode == "open":
             new.gripper = self._open
         if new.mode == "done" and s.mode != "done":
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
 
+    def _grasp_after_push(self, new: ControllerState, s: ControllerState, t: float) -> None:
+        """After a push, with the jaws open above the objects: the grasp of the group it set
+        up, where the planner's physics check left it (no new image), back to the observe
+        pose after the bin; or, the arm unable to reach it, back to the observe pose."""
+        dec = s.plan["then"]
+        try:
+            plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin, q_home=self._home)
+        except MogError:
+            new.plan = {"push_home": self._motion.timed([s.q_hold, self._home])}
+            new.mode, new.t_mode = "push_home", t
+            return
+        new.plan, new.mode, new.t_mode = plan, "approach", t
+        new.attempts.append(
+            {
+                "start": t,
+                "group": list(dec.group),
+                "shapes": list(dec.shapes),
+                "grasp": dec.grasp.tolist(),
+                "planning_time": 0.0,  # the push's decision planned it
+                "planning_cpu": 0.0,
+                "objects_seen": s.pushes[-1].get("objects_seen", 0),
+                "physics_checks": 0,
+                "expected": list(dec.expected),
+                "after_push": True,
+            }
+        )
+
     def _start_push(self, new: ControllerState, s: ControllerState, d, t: float) -> None:
         """Starts the push of decision ``d`` (the jaws close on the way), or skips it as an
-        unreachable grasp is skipped."""
+        unreachable grasp is skipped. A push decision with a grasp (planner.push_then_grasp)
+        grasps the group it set up at once, without a new image."""
         dec = d.decision
         try:
             new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed)
+            new.plan["then"] = dec if dec.grasp is not None else None
         except MogError as e:
             new.skipped = [
                 *s.skipped,
@@ -285,6 +320,7 @@ class ControllerSystem(LeafSystem):
                 "planning_time": dec.planning_time,
                 "planning_cpu": d.cpu_time,
                 "physics_checks": dec.physics_checks,
+                "objects_seen": d.objects_seen,
             }
         )
 

@@ -149,10 +149,11 @@ class ArmMotion:
             f"no arm configuration reaches the drop pose above the bin {np.round(position, 3).tolist()}"
         )
 
-    def pick_plan(self, grasp, q_start, bin_xy, bin_height: float) -> dict:
+    def pick_plan(self, grasp, q_start, bin_xy, bin_height: float, q_home=None) -> dict:
         """Joint trajectories of one attempt: start -> above the grasp -> down -> (close) -> up
-        -> above the bin -> (open) -> start. The grasp yaw is taken modulo pi, whichever turns
-        the wrist less. Raises MogError for a pose the arm cannot reach."""
+        -> above the bin -> (open) -> ``q_home`` (default: start). The grasp yaw is taken
+        modulo pi, whichever turns the wrist less. Raises MogError for a pose the arm cannot
+        reach."""
         cfg = self.config
         z_grasp = self.finger_height + self.finger_clearance
         z_above = z_grasp + cfg.hover
@@ -178,7 +179,7 @@ class ArmMotion:
             "approach": self.timed([q_start, q_above, *down[1:]]),
             "lift": self.timed(up, cfg.carry_scale),
             "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
-            "home": self.timed([q_bin, q_start]),
+            "home": self.timed([q_bin, q_start if q_home is None else np.asarray(q_home, float)]),
             "yaw": yaw,
         }
 
@@ -188,7 +189,7 @@ class ArmMotion:
         """Joint trajectories of one push (`mog_drake.geometry.push.Push`; the jaws closed):
         start -> above the push's start -> down beside the object -> along the line at a mean
         ``speed`` (m/s) on the cubic ease the physics check simulated (`push_duration`) -> up
-        -> start. The closed jaws are square in plan: the wrist takes whichever quarter turn
+        (``push_up``) -> start (``push_home``, unless a grasp follows at once). The closed jaws are square in plan: the wrist takes whichever quarter turn
         of the push's yaw turns it least. Raises MogError for a pose the arm cannot reach."""
         cfg = self.config
         z = self.finger_height + self.finger_clearance
@@ -222,6 +223,7 @@ class ArmMotion:
         return {
             "push_approach": self.timed([q_start, q_above, *down[1:]]),
             "push_line": along,
-            "push_home": self.timed([*up, q_start]),
+            "push_up": self.timed(up),
+            "push_home": self.timed([up[-1], q_start]),
             "yaw": yaw,
         }
