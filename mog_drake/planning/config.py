@@ -78,7 +78,7 @@ class PlannerSpec:
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.
     max_pushes: int = 12
-    push_checks: int = 3
+    push_checks: int = 2
     push_speed: float = 0.05
     push_reach: float = 0.12
     # After a push, grasp the group it set up at once, where the physics check left it, with

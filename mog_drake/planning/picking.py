@@ -42,6 +42,9 @@ LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
 # push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
 # between them, and the pushed object may turn a little as it stops).
 ADJACENT_GAP = PUSH_GAP + 0.004  # m
+# push-mog: physics checks for the grasp a simulated push sets up (its first candidates lift
+# it if any does: the push made the group compact).
+PUSH_GRASP_CHECKS = 2
 
 
 @dataclass(frozen=True, eq=False)  # compared by identity (it holds arrays)
@@ -141,6 +144,7 @@ class PickDecision:
     # ``now``: the objects the grasp that was possible without the push lifted.
     push: Push | None = None
     now: int = 0
+    after: Scene | None = None  # the table the simulated push left (the lookahead plans on it)
 
     def to_dict(self) -> dict:
         return {
@@ -371,11 +375,13 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
             options.append((-len(group), p.distance, p, group))
     options.sort(key=lambda o: o[:2])
     best, checks = None, 0
+    quick = copy.copy(planner)  # the grasps a push sets up: PUSH_GRASP_CHECKS checks each
+    quick.config = replace(planner.config, max_physics=PUSH_GRASP_CHECKS)
     for _, _, p, group in options[: spec.push_checks]:
         r = verifier.push(scene, p, spec.push_speed)
         if r.error:
             continue
-        res = planner.plan(r.scene, group, rng=rng, avoid=avoid)
+        res = quick.plan(r.scene, group, rng=rng, avoid=avoid)
         checks += res.tested
         if res.found:
             grasp, lifted = res.grasp, tuple(res.result.lifted)
@@ -385,7 +391,7 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
             continue
         rate = len(lifted) / (tp + push_duration(p, spec.push_speed) + tg)
         if rate > n_now / tg and (best is None or len(lifted) > len(best[1])):
-            best = (p, lifted, group, grasp)
+            best = (p, lifted, group, grasp, r.scene)
             if len(lifted) >= len(group):  # the largest group first: none to come lifts more
                 break
     d.physics_checks += checks
@@ -393,6 +399,7 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         d.now, d.push = n_now, best[0]
         d.status, d.group, d.expected = "push", best[2], best[1]
         d.grasp = best[3] if spec.push_then_grasp else None
+        d.after = best[4]
         d.shapes = tuple(scene.objects[i].shape for i in d.group)
         d.partial = d.last_resort = False
     d.planning_time += time.perf_counter() - t0

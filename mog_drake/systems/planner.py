@@ -122,10 +122,13 @@ class PlannerSystem(LeafSystem):
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
             job = None
-            if self._lookahead and d.status == "grasp" and not d.unrecognised:
+            # After a grasp, the lookahead plans this image without its objects; after a push
+            # whose grasp follows at once, the table the simulated push left without them.
+            chained = d.status == "push" and d.grasp is not None and d.after is not None
+            if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
                 ahead = self._ahead_worker.submit(
                     lookahead,
-                    scene,
+                    d.after if chained else scene,
                     d,
                     self._ahead_planner,
                     self._spec,
