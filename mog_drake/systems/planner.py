@@ -148,10 +148,10 @@ class PlannerSystem(LeafSystem):
         memory = base.failures
         ahead = context.get_abstract_state(self._ahead).get_value().job
         if ahead is not None:
-            # The lookahead's memory if it is done by now (it planned the table this image
-            # shows, less the objects grasped since); else it is dropped, and its thread
-            # finishes it unused.
-            if ahead.counter == cur.counter and ahead.future.done() and ahead.future.exception() is None:
+            # The lookahead's memory if it is visible by now, as any planning job's result is
+            # after its latency (it planned the table this image shows, less the objects
+            # grasped since); else it is dropped, and its thread finishes it unused.
+            if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory = ahead.result()
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         job = self._worker.submit(
