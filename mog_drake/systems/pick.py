@@ -407,7 +407,9 @@ def attempt_line(k: int, a: dict) -> str:
             f"in physics (without the push: {a['now']})  [planning {a['planning_time']:.2f} s]"
         )
     what = "unrecognised blob(s)" if a.get("unrecognised") else " + ".join(a.get("shapes") or ()) or "?"
-    line = f"attempt {k:3d}  grasp of {len(a['group'])}: {what}"
+    line = f"attempt {k:3d}  grasp of {len(a['group'])}: {what}" + (
+        " (after the push)" if a.get("after_push") else ""
+    )
     if a.get("carried") is not None:
         line += f"  -> lifted {len(a['carried'])}"
     if a.get("picked") is not None:
