@@ -188,21 +188,7 @@ class ControllerSystem(LeafSystem):
                         new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
                     except MogError as e:
                         # Observe again: the planner does not repeat its last few grasps.
-                        new.skipped = [
-                            *s.skipped,
-                            {
-                                "t": t,
-                                "grasp": dec.grasp.tolist(),
-                                "reason": str(e),
-                                "planning_time": dec.planning_time,
-                                "planning_cpu": d.cpu_time,
-                            },
-                        ]
-                        new.unreachable = s.unreachable + 1
-                        new.mode, new.t_mode = "observe", t
-                        if new.unreachable >= self._max_unreachable:
-                            new.mode = "done"
-                            new.finished = f"unreachable grasp ({new.unreachable} in a row): {e}"
+                        self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e)
                     else:
                         new.mode, new.t_mode, new.unreachable = "approach", t, 0
                         new.attempts.append(
@@ -257,6 +243,16 @@ class ControllerSystem(LeafSystem):
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
 
+    def _skip(self, new: ControllerState, s: ControllerState, d, t: float, kind: str, what, e) -> None:
+        """Skips decision ``d``'s grasp or push (``kind``), which the arm cannot reach: logged,
+        and the arm observes again; max_unreachable in a row end the run."""
+        entry = {"t": t, kind: what, "reason": str(e), "planning_time": d.decision.planning_time}
+        new.skipped = [*s.skipped, {**entry, "planning_cpu": d.cpu_time}]
+        new.unreachable = s.unreachable + 1
+        new.mode, new.t_mode = "observe", t
+        if new.unreachable >= self._max_unreachable:
+            new.mode, new.finished = "done", f"unreachable {kind} ({new.unreachable} in a row): {e}"
+
     def _grasp_after_push(self, new: ControllerState, s: ControllerState, t: float) -> None:
         """After a push, with the jaws open above the objects: the grasp of the group it set
         up, where the planner's physics check left it (no new image), back to the observe
@@ -293,20 +289,7 @@ class ControllerSystem(LeafSystem):
             new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed)
             new.plan["then"] = dec if dec.grasp is not None else None
         except MogError as e:
-            new.skipped = [
-                *s.skipped,
-                {
-                    "t": t,
-                    "push": dec.push.to_dict(),
-                    "reason": str(e),
-                    "planning_time": dec.planning_time,
-                    "planning_cpu": d.cpu_time,
-                },
-            ]
-            new.unreachable = s.unreachable + 1
-            new.mode, new.t_mode = "observe", t
-            if new.unreachable >= self._max_unreachable:
-                new.mode, new.finished = "done", f"unreachable push ({new.unreachable} in a row): {e}"
+            self._skip(new, s, d, t, "push", dec.push.to_dict(), e)
             return
         new.mode, new.t_mode, new.unreachable, new.gripper = "push_approach", t, 0, 0.0
         new.pushes.append(

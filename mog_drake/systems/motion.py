@@ -149,6 +149,19 @@ class ArmMotion:
             f"no arm configuration reaches the drop pose above the bin {np.round(position, 3).tolist()}"
         )
 
+    def _above(self, xy, z: float, yaws, q_start):
+        """(yaw, joints) of the pose at ``xy``, height ``z``, among ``yaws``, that turns the
+        joints least from ``q_start``; None when the arm reaches none of them."""
+        best = None
+        for yaw in yaws:
+            try:
+                q = self.ik([xy[0], xy[1], z], yaw, q_start)
+            except MogError:
+                continue
+            if best is None or np.abs(q - q_start).sum() < np.abs(best[1] - q_start).sum():
+                best = (yaw, q)
+        return best
+
     def pick_plan(self, grasp, q_start, bin_xy, bin_height: float, q_home=None) -> dict:
         """Joint trajectories of one attempt: start -> above the grasp -> down -> (close) -> up
         -> above the bin -> (open) -> ``q_home`` (default: start). The grasp yaw is taken
@@ -158,14 +171,7 @@ class ArmMotion:
         z_grasp = self.finger_height + self.finger_clearance
         z_above = z_grasp + cfg.hover
         q_start = np.asarray(q_start, float)
-        best = None
-        for yaw in (grasp[2], grasp[2] + np.pi):
-            try:
-                q_above = self.ik([grasp[0], grasp[1], z_above], yaw, q_start)
-            except MogError:
-                continue
-            if best is None or np.abs(q_above - q_start).sum() < np.abs(best[1] - q_start).sum():
-                best = (yaw, q_above)
+        best = self._above(grasp[:2], z_above, (grasp[2], grasp[2] + np.pi), q_start)
         if best is None:
             raise MogError(
                 f"no arm configuration reaches above the grasp at {np.round(grasp[:2], 3).tolist()}"
@@ -196,15 +202,7 @@ class ArmMotion:
         z_above = z + cfg.hover
         q_start = np.asarray(q_start, float)
         a, b = np.asarray(push.start, float), np.asarray(push.end, float)
-        best = None
-        for k in range(4):
-            yaw = push.yaw + k * np.pi / 2
-            try:
-                q_above = self.ik([a[0], a[1], z_above], yaw, q_start)
-            except MogError:
-                continue
-            if best is None or np.abs(q_above - q_start).sum() < np.abs(best[1] - q_start).sum():
-                best = (yaw, q_above)
+        best = self._above(a, z_above, [push.yaw + k * np.pi / 2 for k in range(4)], q_start)
         if best is None:
             raise MogError(f"no arm configuration reaches above the push at {np.round(a, 3).tolist()}")
         yaw, q_above = best
