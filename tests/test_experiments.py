@@ -280,6 +280,24 @@ def test_two_picking_sweeps_are_compared_table_by_table():
         picking_eval.compare(a[2:3], b)
 
 
+def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
+    results = [
+        _picking_record(0, "sog", 1.0, 500.0),
+        _picking_record(0, "push-mog", 1.0, 800.0),
+        _picking_record(1, "sog", 1.0, 400.0),
+        _picking_record(1, "push-mog", 0.9, 700.0),
+        _picking_record(2, "sog", 1.0, 450.0),  # push-mog has not run table 2 yet
+        _picking_record(0, "mog", 1.0, 999.0),
+    ]
+    doc = picking_eval.compare_modes(results, "sog", "push-mog")
+    assert doc["tables"] == 2
+    assert [t["table"] for t in doc["per_table"]] == [0, 1]
+    assert [t["pph_ratio"] for t in doc["per_table"]] == pytest.approx([1.6, 1.75])
+    pph = next(r for r in doc["rows"] if r["metric"] == "pph")
+    assert pph["mode"] == "push-mog vs sog" and pph["b_minus_a"] == pytest.approx(300.0)
+    assert pph["a"] == pytest.approx(450.0) and pph["b"] == pytest.approx(750.0)
+
+
 def test_grouping_ceiling_counts_the_grasps_alg1_needs_if_every_group_lifts_whole():
     from conftest import make_scene
 

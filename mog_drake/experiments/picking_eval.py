@@ -233,6 +233,38 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
     return {"rows": rows, "transit_drops": drops, "tables": len(common)}
 
 
+def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
+    """Mode B against mode A on the tables of one sweep that ran both (`compare`'s rows,
+    labelled "B vs A"), and table by table: PPH and objects per successful grasp of each,
+    and the PPH ratio B / A."""
+
+    def side(mode):
+        label = f"{b_mode} vs {a_mode}"
+        return [{**r, "key": f"s{r['scene']}", "mode": label} for r in results if r["mode"] == mode]
+
+    a, b = side(a_mode), side(b_mode)
+    paired = compare(a, b)
+    by_a = {r["key"]: r["summary"] for r in a}
+    tables = []
+    for r in sorted(b, key=lambda r: r["scene"]):
+        sa, sb = by_a.get(r["key"]), r["summary"]
+        if sa is None:
+            continue
+        tables.append(
+            {
+                "table": r["scene"],
+                f"pph_{a_mode}": sa["pph"],
+                f"pph_{b_mode}": sb["pph"],
+                "pph_ratio": sb["pph"] / sa["pph"] if sa["pph"] else float("nan"),
+                f"per_grasp_{a_mode}": sa["objects_per_success"],
+                f"per_grasp_{b_mode}": sb["objects_per_success"],
+                f"picked_{b_mode}": sb["picked_pct"],
+                "pushes": sb.get("pushes", 0),
+            }
+        )
+    return {**paired, "per_table": tables}
+
+
 def compare_text(doc: dict) -> str:
     from mog_drake.tables import format_table
 
@@ -321,6 +353,18 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
     text += f"\nPPH multi / single: {ratio:.2f}" if ratio == ratio else "\nPPH multi / single: n/a (one mode)"
     if "pph_ratio_push_mog_over_sog" in summary:
         text += f"\nPPH push-mog / single: {summary['pph_ratio_push_mog_over_sog']:.2f}"
+        try:
+            modes = compare_modes(results, "sog", "push-mog")
+        except MogError:  # the two modes ran on no common table yet
+            modes = None
+    if "pph_ratio_push_mog_over_sog" in summary and modes is not None:
+        summary["push_mog_vs_sog"] = modes
+        text += (
+            f"\n\npush-mog paired with sog on the {modes['tables']} tables that ran both\n"
+            + format_table(modes["per_table"], list(modes["per_table"][0]) if modes["per_table"] else [])
+            + "\n"
+            + compare_text(modes)
+        )
     text += "\n" + losses_text(summary)
     if compare_dir:
         other = Path(compare_dir) / "results.jsonl"
