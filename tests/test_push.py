@@ -144,6 +144,9 @@ def test_push_mog_grasps_when_pushing_does_not_pay_or_no_push_is_left():
     # Apart, but a push costs as much as 2 grasps: 2 / (13 + 6.5) < 1 / 6.5.
     d, physics = _decide(make_scene(BARS), push_time_s=13.0)
     assert d.status == "grasp" and physics.pushes == []
+    # Apart, but the grasp now lifts 1 and pushes are considered only below 1.
+    d, physics = _decide(make_scene(BARS), push_below=1)
+    assert d.status == "grasp" and physics.pushes == []
     # Apart, and the table's pushes are used up.
     d, physics = _decide(make_scene(BARS), pushes_left=0)
     assert d.status == "grasp" and physics.pushes == []

@@ -344,8 +344,9 @@ def lookahead(
 
 
 def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid) -> None:
-    """push-mog: turns decision ``d`` (Alg. 1's) into a push when the push and the grasp it
-    sets up are expected to take more objects per second of robot time than ``d``'s grasp:
+    """push-mog: turns decision ``d`` (Alg. 1's) into a push when its grasp lifts fewer than
+    ``push_below`` objects and the push and the grasp it sets up are expected to take more
+    objects per second of robot time than ``d``'s grasp:
     m / (push_time_s + T + grasp_time_s) > n / grasp_time_s, n being what ``d``'s grasp
     lifted in the physics check, m what the grasp after the push lifted, and T the push's
     own time along its line (`push_duration`).
@@ -361,6 +362,8 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
     if not hasattr(verifier, "push"):
         raise MogError("push-mog needs a verifier that simulates pushes (DrakeVerifier)")
     n_now = len(d.expected) if d.status == "grasp" else 0
+    if n_now >= spec.push_below:
+        return
     tp, tg = spec.push_time_s, spec.grasp_time_s
     polys = scene.polygons()
     groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
