@@ -79,13 +79,13 @@ class PlannerSpec:
     # an object and the one it is pushed to may start.
     max_pushes: int = 12
     push_checks: int = 2
+    push_speed: float = 0.05
+    push_reach: float = 0.12
     # Pushes are considered only when Alg. 1's grasp lifts fewer objects than this (in its
     # physics check): each consideration simulates pushes and grasps, and the lookahead does
     # not plan pushes ahead. With 2, lone objects are paired; a pair made a trio would add
     # 15-20 % (3 objects in 8-8.5 s against 2 in 6.5 s) for 6-10 s of planning before the arm.
     push_below: int = 2
-    push_speed: float = 0.05
-    push_reach: float = 0.12
     # After a push, grasp the group it set up at once, where the physics check left it, with
     # no new image: the arm goes up, opens its jaws and on to that grasp instead of back to
     # the observe pose to look again. Off: it looks again, and plans anew.
