@@ -602,3 +602,43 @@ def test_gripper_cli_refuses_a_bad_force_before_sending_anything(capsys):
         time.sleep(0.1)
         assert srv.received == []
     assert "--force" in capsys.readouterr().err
+
+
+def test_a_push_on_hardware_streams_within_the_limits_with_the_jaws_closed(replay_dir, monkeypatch):
+    """push-mog's push through the drivers to fakes that behave as ur_rtde and the URCap, in
+    real time: the jaws were closed (POS 255) before the palm came down, the palm went along
+    the push's line at grasp height, and no target outran the joint-speed limit in wall-clock
+    time."""
+    import mog_drake.systems.planner as ls
+    from mog_drake.geometry.push import Push
+    from mog_drake.planning.picking import PickDecision
+    from mog_drake.systems.pick import run_pick
+
+    push = Push((0.0, -0.05), (0.0, 0.0), np.pi / 2, 0, 1, 0.04)
+
+    def push_now(scene, *a, **kw):
+        return PickDecision("push", group=(0, 1), expected=(0, 1), push=push, now=1)
+
+    monkeypatch.setattr(ls, "next_pick", push_now)
+    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=4.0)
+    sc.planner.mode = "push-mog"
+    ur, control, receive = fake_ur5(sc.robot.home)
+    with FakeRobotiq() as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client:
+        run = run_pick(
+            sc, hardware_clients={"rtde_control": control, "rtde_receive": receive, "gripper_client": client}
+        )
+        received, received_at = list(srv.received), list(srv.received_at)
+    assert run.pushes and run.pushes[0]["push"]["target"] == 0
+    assert max_wall_excess(ur.servo, 3.5, 3.5 * LIMITS.burst_window + 1e-3) <= 0
+    mon = _safety(sc)
+    assert all(mon.check(s[1]) == "" for s in ur.servo)
+    stamps = np.array([s[0] for s in ur.servo])
+    palms = np.array([mon.palm_position(s[1]) for s in ur.servo])
+    low = palms[:, 2] < 0.045  # at grasp height (0.042 m)
+    assert low.any()
+    along = palms[low]
+    assert np.abs(along[:, 0]).max() < 2e-3  # on the line x = 0 ...
+    assert along[:, 1].min() < -0.045 and along[:, 1].max() > -0.005  # ... from its start to its end
+    # The close (POS 255) went out before the palm first came down.
+    closes = [k for k, r in enumerate(received) if r.startswith("SET SPE") and int(r.split()[6]) == 255]
+    assert closes and received_at[closes[0]] < stamps[np.argmax(low)]

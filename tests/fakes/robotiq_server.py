@@ -45,6 +45,7 @@ class FakeRobotiq:
         self._act_at: float | None = None
         self._move: tuple[float, int] | None = None  # (started, target POS)
         self.received: list[str] = []
+        self.received_at: list[float] = []  # time.monotonic() of each request, for tests
         self._lock = threading.Lock()
         self._srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self._srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -93,6 +94,7 @@ class FakeRobotiq:
                     line, buf = buf.split(b"\n", 1)
                     text = line.decode().strip()
                     self.received.append(text)
+                    self.received_at.append(time.monotonic())
                     if self.mode == "drop":
                         return
                     if self.mode == "garbage":
