@@ -24,14 +24,20 @@ def create_obj_groups(centers, radius: float = DEFAULT_GROUP_RADIUS) -> list[tup
     if len(c) == 0:
         return []
     d = np.linalg.norm(c[:, None, :] - c[None, :, :], axis=2)
+    return _neighbourhoods(d, radius + LENGTH_TOL) + [(i,) for i in range(len(c))]
+
+
+def _neighbourhoods(d: np.ndarray, within: float) -> list[tuple[int, ...]]:
+    """For each object i, the objects j with ``d[i, j] <= within`` (i itself included), as
+    sorted tuples in order of i: only those of two or more objects, without duplicates, and
+    without any that is a strict subset of another."""
     hoods = []
-    for i in range(len(c)):
-        g = tuple(int(j) for j in np.flatnonzero(d[i] <= radius + LENGTH_TOL))
+    for i in range(len(d)):
+        g = tuple(int(j) for j in np.flatnonzero(d[i] <= within))
         if len(g) > 1 and g not in hoods:
             hoods.append(g)
     sets = [set(g) for g in hoods]
-    multi = [g for g, s in zip(hoods, sets) if not any(s < other for other in sets)]
-    return multi + [(i,) for i in range(len(c))]
+    return [g for g, s in zip(hoods, sets) if not any(s < other for other in sets)]
 
 
 def rank_obj_groups(groups, d_fmin, w_g: float) -> list[tuple[int, ...]]:
@@ -61,14 +67,7 @@ def adjacent_groups(polys, gap: float, w_g: float) -> list[tuple[int, ...]]:
         return []
     shp = np.array([shapely.Polygon(polys.polygon(i)) for i in range(len(polys))], dtype=object)
     d = shapely.distance(shp[:, None], shp[None, :])
-    hoods = []
-    for i in range(len(polys)):
-        g = tuple(int(j) for j in np.flatnonzero(d[i] <= gap))
-        if len(g) > 1 and g not in hoods:
-            hoods.append(g)
-    sets = [set(g) for g in hoods]
-    keep = [g for g, s in zip(hoods, sets) if not any(s < other for other in sets)]
-    return rank_obj_groups(keep, polys.d_fmin, w_g)
+    return rank_obj_groups(_neighbourhoods(d, gap), polys.d_fmin, w_g)
 
 
 #: Grid of the conditions grouping (`condition_groups`): positions every STEP metres over the

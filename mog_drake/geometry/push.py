@@ -122,22 +122,16 @@ def push_between(polys, i: int, j: int, gripper: GripperGeometry) -> Push | None
     start = ci - u * (back + gripper.plate_thickness + PUSH_CLEARANCE)
     sweep = PUSH_CLEARANCE + travel
     # Only objects whose bounding circles come near the swept band can be in the way.
-    a, b = start, ci + u * (travel + polys.radii[i])
-    t = np.clip((polys.centers - a) @ u, 0.0, float((b - a) @ u))
-    gap = np.linalg.norm(polys.centers - (a + t[:, None] * u), axis=1)
-    near = np.flatnonzero(gap < polys.radii + max(polys.radii[i], gripper.plate_width) + PUSH_MARGIN)
+    length = float((ci + u * (travel + polys.radii[i]) - start) @ u)
+    near = near_path(polys, start, u, length, max(polys.radii[i], gripper.plate_width) + PUSH_MARGIN)
     for k in near:  # the object's path: nothing else before the one it joins
         if k not in (i, j) and contact_distance(Pi, polys.polygon(k), u) < travel + PUSH_GAP:
             return None
-    square = pusher_square(start, u, gripper)
+    # The pusher neither starts within PUSH_MARGIN of another object nor sweeps into one (the
+    # pushed object stops PUSH_GAP short of j, the pusher a plate behind it).
+    grown = _grow(pusher_square(start, u, gripper), PUSH_MARGIN)
     for k in near:
-        if k == i:
-            continue
-        Pk = polys.polygon(k)
-        # The pusher neither starts within PUSH_MARGIN of another object nor sweeps into one
-        # (the pushed object stops PUSH_GAP short of j, the pusher a plate behind it).
-        grown = _grow(square, PUSH_MARGIN)
-        if contact_distance(grown, Pk, u) < sweep:
+        if k != i and contact_distance(grown, polys.polygon(k), u) < sweep:
             return None
     end = start + u * sweep
     return Push(
@@ -148,6 +142,15 @@ def push_between(polys, i: int, j: int, gripper: GripperGeometry) -> Push | None
         int(j),
         float(travel),
     )
+
+
+def near_path(polys, start, u, length: float, margin: float) -> np.ndarray:
+    """Indices of the objects whose bounding circles come within ``margin`` (m) of the segment
+    from ``start`` along unit vector ``u`` for ``length`` (m)."""
+    a = np.asarray(start, float)
+    t = np.clip((polys.centers - a) @ u, 0.0, length)
+    gap = np.linalg.norm(polys.centers - (a + t[:, None] * u), axis=1)
+    return np.flatnonzero(gap < polys.radii + margin)
 
 
 def _grow(square: np.ndarray, margin: float) -> np.ndarray:

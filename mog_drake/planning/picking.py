@@ -316,21 +316,13 @@ def lookahead(
     without the objects ``decision`` grasps, as if they were gone and nothing else had moved,
     plus the grasp it found there. In the next image, each group whose surroundings are
     where they were is replayed from it with no physics (its failure, or its grasp); the
-    groups the grasp disturbed are planned again. No pushes are considered here."""
+    groups the grasp disturbed are planned again. No pushes are considered here
+    (``pushes_left`` 0: push-mog plans Alg. 1's grasp alone)."""
     gone = set(decision.group) | set(decision.expected)
     rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
     if len(rest) == 0:
         return ()
-    ahead = next_pick(
-        rest,
-        planner,
-        replace(spec, mode="mog") if spec.mode == "push-mog" else spec,
-        rng,
-        avoid,
-        decision.failures,
-        grasp_unrecognised,
-        adjacent=ADJACENT_GAP if spec.mode == "push-mog" else 0.0,
-    )
+    ahead = next_pick(rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=0)
     memory = list(ahead.failures)
     found = ahead.plans[-1] if ahead.plans else None
     if (

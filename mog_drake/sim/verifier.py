@@ -19,7 +19,7 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, EventStatus, 
 from mog_drake.geometry import GripperGeometry, objects_in_reach
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import ease as _smooth
-from mog_drake.geometry.push import push_duration
+from mog_drake.geometry.push import near_path, push_duration
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -136,7 +136,6 @@ class PushScript(LeafSystem):
     def __init__(self, gripper: GripperGeometry, config: VerifierConfig):
         super().__init__()
         self._g = gripper
-        self._cfg = config
         self._z0 = config.physics.finger_height + config.physics.finger_clearance
         # x0, y0, x1, y1, yaw, duration
         self._index = self.DeclareNumericParameter(BasicVector(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])))
@@ -274,12 +273,9 @@ class DrakeVerifier:
 
         t0 = time.perf_counter()
         polys = scene.polygons()
-        a = np.asarray(push.start, float)
-        u = push.direction
         reach = push.length + polys.radii[push.target] * 2
-        t = np.clip((polys.centers - a) @ u, 0.0, reach)
-        gap = np.linalg.norm(polys.centers - (a + t[:, None] * u), axis=1)
-        ids = sorted(set(np.flatnonzero(gap < polys.radii + self.PUSH_REACH).tolist()) | {push.target})
+        near = near_path(polys, push.start, push.direction, reach, self.PUSH_REACH)
+        ids = sorted(set(near.tolist()) | {push.target})
         sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat, PushScript)
         plant, pc = sim.plant, sim.plant_context
         duration = push_duration(push, speed)

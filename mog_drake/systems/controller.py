@@ -10,6 +10,7 @@ from pydrake.systems.framework import LeafSystem
 from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.geometry.polygon import convex_hull_ccw
+from mog_drake.geometry.push import Push
 from mog_drake.systems.perception import Checked, Perceived, _Immutable
 from mog_drake.systems.planner import Decision
 
@@ -324,14 +325,11 @@ class ControllerSystem(LeafSystem):
         prisms = [(scene.polygon(i), scene.shape(i).height) for i in range(len(scene)) if i not in carried]
         prisms += [(b["vertices"], b["top"]) for b in scene.meta.get("unrecognised", ())]
         if not holding and s.pushes:  # the pushed object: anywhere along its push
-            p = s.pushes[-1]["push"]
-            if 0 <= p["target"] < len(scene):
-                v = scene.polygon(p["target"])
-                step = np.subtract(p["end"], p["start"]) / max(
-                    np.hypot(*np.subtract(p["end"], p["start"])), 1e-9
-                )
-                swept = np.vstack([v, v + step * (p["distance"] + 0.01)])
-                prisms.append((convex_hull_ccw(swept), scene.shape(p["target"]).height))
+            p = Push(**s.pushes[-1]["push"])
+            if 0 <= p.target < len(scene):
+                v = scene.polygon(p.target)
+                swept = np.vstack([v, v + p.direction * (p.distance + 0.01)])
+                prisms.append((convex_hull_ccw(swept), scene.shape(p.target).height))
         return self._arm_view.clear_of(q, holding, prisms)
 
     def _out_q(self, context, output) -> None:

@@ -195,8 +195,9 @@ class ArmMotion:
         """Joint trajectories of one push (`mog_drake.geometry.push.Push`; the jaws closed):
         start -> above the push's start -> down beside the object -> along the line at a mean
         ``speed`` (m/s) on the cubic ease the physics check simulated (`push_duration`) -> up
-        (``push_up``) -> start (``push_home``, unless a grasp follows at once). The closed jaws are square in plan: the wrist takes whichever quarter turn
-        of the push's yaw turns it least. Raises MogError for a pose the arm cannot reach."""
+        (``push_up``) -> start (``push_home``, unless a grasp follows at once). The closed
+        jaws are square in plan: the wrist takes whichever quarter turn of the push's yaw
+        turns it least. Raises MogError for a pose the arm cannot reach."""
         cfg = self.config
         z = self.finger_height + self.finger_clearance
         z_above = z + cfg.hover
