@@ -33,6 +33,30 @@ def test_polygon_score_of_uniform_evidence_is_the_area_in_pixels(theta):
         assert abs(inside - area) < 0.5 * perimeter
 
 
+def test_polygon_score_with_samples_per_edge_is_the_area_and_stacks_faces_of_any_vertex_count():
+    """Samples per edge (a thin bar's short ends need few) keep the score exact on uniform
+    evidence; a stack of windows holding faces with different vertex counts and samples
+    scores each pose as its own face's score does (the shorter face padded with edges of no
+    length before its closing edge)."""
+    rng = np.random.default_rng(2)
+    tri = np.array([[-1.2, -0.7], [1.5, -0.4], [0.1, 1.6]])
+    bar = np.array([[-2.0, -0.3], [2.0, -0.3], [2.0, 0.3], [-2.0, 0.3]])
+    E = rng.standard_normal((80, 100))
+    t_score = PolygonScore(E, (5, 7), _square_plane(), tri, samples=[30, 20, 25])
+    b_score = PolygonScore(E, (2, 3), _square_plane(9.0), bar, samples=[40, 6, 40, 6])
+    flat = PolygonScore(np.ones((80, 100)), (5, 7), _square_plane(), bar, samples=[40, 6, 40, 6])
+    assert flat(np.array([[0.1, -0.2, 0.4]]))[0] == pytest.approx(4.0 * 0.6 * 100, rel=1e-3)
+    poses = np.column_stack([rng.uniform(-0.5, 0.5, (6, 2)), rng.uniform(0, 3, 6)])
+    both = PolygonScore.stack([t_score, b_score, t_score])
+    for owner, own in ((0, t_score), (1, b_score), (2, t_score)):
+        assert both(poses, owner=np.full(6, owner)) == pytest.approx(own(poses), rel=1e-5, abs=1e-3)
+    mixed = np.array([0, 1, 2, 1, 0, 1])
+    expected = [(t_score, b_score, t_score)[o](poses[i : i + 1])[0] for i, o in enumerate(mixed)]
+    assert both(poses, owner=mixed) == pytest.approx(expected, rel=1e-5, abs=1e-3)
+    with pytest.raises(ValueError, match="at least one sample"):
+        PolygonScore(E, (0, 0), _square_plane(), tri, samples=[3, 0, 3])
+
+
 def test_polygon_score_moves_with_sub_pixel_shifts_and_peaks_on_the_object():
     """Evidence +1 on a square object and -1.5 around it: the score grows continuously as a
     square of the same size slides onto it, and is largest where it sits on it."""

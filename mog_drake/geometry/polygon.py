@@ -35,13 +35,21 @@ def convex_inside_distance(poly: np.ndarray, x, y) -> np.ndarray:
     > 0 inside, < 0 outside (a lower bound of the true distance out there; exact near an
     edge). nan coordinates give nan."""
     p = np.asarray(poly, float)
-    e = np.roll(p, -1, axis=0) - p
-    wind = np.sign(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])) or 1.0
-    n = wind * np.stack([-e[:, 1], e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)  # inward
+    q = p[np.arange(1, len(p) + 1) % len(p)]  # each edge's end (np.roll costs more than this)
+    e = q - p
+    wind = np.sign(np.sum(p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1])) or 1.0
+    n = wind * np.stack([-e[:, 1], e[:, 0]], axis=1) / np.hypot(e[:, 0], e[:, 1])[:, None]  # inward
+    # d = n . (point - vertex) = n . point - n . vertex, each edge's line in one product.
+    c = (n * p).sum(axis=1)
     out = None
-    for (px, py), (nx, ny) in zip(p, n):
-        d = nx * (x - px) + ny * (y - py)
-        out = d if out is None else np.minimum(out, d)
+    for (nx, ny), ci in zip(n.tolist(), c.tolist()):
+        d = nx * x + ny * y - ci
+        if out is None:
+            out = d
+        elif isinstance(out, np.ndarray):
+            np.minimum(out, d, out=out)
+        else:
+            out = np.minimum(out, d)
     return out
 
 

@@ -78,8 +78,8 @@ def _penetration(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     axis theorem), or None if they do not overlap."""
     best = None
     for poly in (a, b):
-        e = np.roll(poly, -1, axis=0) - poly
-        normals = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1, keepdims=True)
+        e = poly[np.arange(1, len(poly) + 1) % len(poly)] - poly
+        normals = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.hypot(e[:, 0], e[:, 1])[:, None]
         for n in normals:
             pa, pb = a @ n, b @ n
             depth = min(pa.max() - pb.min(), pb.max() - pa.min())
@@ -89,6 +89,9 @@ def _penetration(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
                 sign = -1.0 if pa.mean() < pb.mean() else 1.0
                 best = (depth, sign * n)
     return best[1] * best[0]
+
+
+PAIR_SLACK = 0.005  # m
 
 
 def separate_overlaps(objects, library, gap: float = 2e-4, iterations: int = 20):
@@ -102,22 +105,27 @@ def separate_overlaps(objects, library, gap: float = 2e-4, iterations: int = 20)
         polys = [transform(library[o.shape].vertices, o.x, o.y, o.theta) for o in objs]
         centres = np.array([p.mean(axis=0) for p in polys]).reshape(-1, 2)
         radii = np.array([np.linalg.norm(p - p.mean(axis=0), axis=1).max() for p in polys])
+        # Pairs whose discs come within PAIR_SLACK of meeting, in (i, j) order: a pass moves
+        # objects by fractions of a millimetre, so no other pair can come to overlap in it.
+        clear = (
+            np.hypot(*(centres[:, None, :] - centres[None, :, :]).transpose(2, 0, 1)) - radii[:, None] - radii
+        )
+        near = np.argwhere(np.triu(clear <= PAIR_SLACK, 1))
         changed = False
-        for i in range(len(objs)):
-            for j in range(i + 1, len(objs)):
-                if np.linalg.norm(centres[i] - centres[j]) > radii[i] + radii[j]:
-                    continue
-                d = _penetration(polys[i], polys[j])
-                if d is None:
-                    continue
-                step = d / 2 + gap / 2 * d / np.linalg.norm(d)
-                for k, sgn in ((i, 1.0), (j, -1.0)):
-                    o = objs[k]
-                    objs[k] = SceneObject(o.shape, o.x + sgn * step[0], o.y + sgn * step[1], o.theta)
-                    polys[k] = polys[k] + sgn * step
-                    centres[k] = centres[k] + sgn * step
-                moved += 1
-                changed = True
+        for i, j in near.tolist():
+            if np.linalg.norm(centres[i] - centres[j]) > radii[i] + radii[j]:
+                continue
+            d = _penetration(polys[i], polys[j])
+            if d is None:
+                continue
+            step = d / 2 + gap / 2 * d / np.linalg.norm(d)
+            for k, sgn in ((i, 1.0), (j, -1.0)):
+                o = objs[k]
+                objs[k] = SceneObject(o.shape, o.x + sgn * step[0], o.y + sgn * step[1], o.theta)
+                polys[k] = polys[k] + sgn * step
+                centres[k] = centres[k] + sgn * step
+            moved += 1
+            changed = True
         if not changed:
             break
     return objs, moved
@@ -158,17 +166,20 @@ class PolygonScore:
     ``evidence`` (+1 a pixel of the object, a negative weight a pixel that rules it out, 0 no
     evidence) over the pixels the face covers in the image, by Green's theorem: the integral
     over the projected polygon is the line integral around it of the evidence's running sum
-    along each row. A pose costs V x ``samples`` look-ups, whatever the face's area. Pixels
-    partly covered count in part (the running sum is interpolated), so the score changes
-    continuously as the face moves by a fraction of a pixel.
+    along each row, taken by the midpoint rule on each edge. A pose costs one look-up per
+    sample, whatever the face's area. Pixels partly covered count in part (the running sum is
+    interpolated), so the score changes continuously as the face moves by a fraction of a
+    pixel.
 
     ``evidence`` (h, w): a window of the image, its pixel (0, 0) at image pixel ``origin``
     (u0, v0). ``plane``: the 3 x 3 homography from (x, y, 1) on the face's plane to
     homogeneous image coordinates. ``vertices`` (V, 2): the face in its body frame.
-    `PolygonScore.stack` joins the scores of one face in several windows (several instances
-    fitted at once): each pose then names its window (``owner``)."""
+    ``samples``: per edge, an int for every edge or a count for each (about one per pixel of
+    the edge's length: a thin bar's short ends need few). `PolygonScore.stack` joins scores
+    in several windows (several instances fitted at once, of one shape or of several): each
+    pose then names its window (``owner``)."""
 
-    def __init__(self, evidence: np.ndarray, origin, plane: np.ndarray, vertices: np.ndarray, samples: int):
+    def __init__(self, evidence: np.ndarray, origin, plane: np.ndarray, vertices: np.ndarray, samples):
         h, w = evidence.shape
         if h < 2 or w < 2:
             raise ValueError(f"a score window must be at least 2 x 2 pixels, got {h} x {w}")
@@ -182,13 +193,23 @@ class PolygonScore:
         shift = np.array([[1.0, 0.0, 0.5 - origin[0]], [0.0, 1.0, -origin[1]], [0.0, 0.0, 1.0]])
         self._H = (shift @ np.asarray(plane, float))[None]
         v = np.asarray(vertices, float)
-        self._V = np.vstack([v.T, np.ones(len(v))])  # (3, V)
-        self._next = np.roll(np.arange(len(v)), -1)
-        self._samples = samples
+        self._V = np.vstack([v.T, np.ones(len(v))])[None]  # (windows, 3, V)
+        self._next = np.arange(1, len(v) + 1) % len(v)
+        counts = np.broadcast_to(np.asarray(samples, dtype=np.intp), (len(v),))
+        if np.any(counts < 1):
+            raise ValueError(f"every edge needs at least one sample, got {counts.tolist()}")
+        self._counts = counts[None].copy()  # (windows, V)
+        self._tables: dict = {}
+
+    @property
+    def _samples(self) -> int:
+        """The most samples of any edge."""
+        return int(self._counts.max())
 
     @classmethod
     def stack(cls, scores: list["PolygonScore"]) -> "PolygonScore":
-        """One score over the windows of ``scores`` (one face: the same vertices)."""
+        """One score over the windows of ``scores``. Faces with fewer vertices than the most
+        are padded by repeating their last vertex, an edge of no length and no samples."""
         out = cls.__new__(cls)
         sizes = [len(x._C) for x in scores]
         out._C = np.concatenate([x._C for x in scores])
@@ -196,48 +217,109 @@ class PolygonScore:
         out._h = np.concatenate([x._h for x in scores])
         out._w = np.concatenate([x._w for x in scores])
         out._H = np.concatenate([x._H for x in scores])
-        out._V, out._next = scores[0]._V, scores[0]._next
-        out._samples = max(x._samples for x in scores)
+        n = max(x._V.shape[2] for x in scores)
+        if all(x._V.shape == scores[0]._V.shape and np.array_equal(x._V, scores[0]._V) for x in scores):
+            out._V = scores[0]._V
+        else:
+            out._V = np.concatenate(
+                [np.concatenate([x._V] + [x._V[:, :, -1:]] * (n - x._V.shape[2]), axis=2) for x in scores]
+            )
+        # A padded face's closing edge is its last: the edges of no length come before it.
+        if all(np.array_equal(x._counts, scores[0]._counts) for x in scores):
+            out._counts = scores[0]._counts  # one table of samples serves every window
+        else:
+            out._counts = np.concatenate(
+                [
+                    np.concatenate(
+                        [
+                            x._counts[:, :-1],
+                            np.zeros((len(x._counts), n - x._counts.shape[1]), np.intp),
+                            x._counts[:, -1:],
+                        ],
+                        axis=1,
+                    )
+                    for x in scores
+                ]
+            )
+        out._next = np.arange(1, n + 1) % n
+        out._tables = {}
         return out
+
+    def _table(self, coarse: int):
+        """Each window's samples, padded to the most (weight 0): the edge each lies on (W, M),
+        where along it (W, M) and its weight, 1 / the edge's samples (W, M). With ``coarse``
+        > 1, each edge takes that many times fewer samples (at least 2)."""
+        if coarse not in self._tables:
+            counts = self._counts
+            if coarse > 1:
+                counts = np.where(counts > 0, np.maximum(counts // coarse, 2), 0)
+            M = int(counts.sum(axis=1).max())
+            W = len(counts)
+            edge = np.zeros((W, M), np.intp)
+            t = np.zeros((W, M), np.float32)
+            wt = np.zeros((W, M), np.float32)
+            for i, row in enumerate(counts):
+                j = 0
+                for e, n in enumerate(row):
+                    if n == 0:
+                        continue
+                    edge[i, j : j + n] = e
+                    t[i, j : j + n] = (np.arange(n) + 0.5) / n
+                    wt[i, j : j + n] = 1.0 / n
+                    j += n
+            self._tables[coarse] = (edge, t, wt)
+        return self._tables[coarse]
 
     def polygons(self, poses: np.ndarray, owner=None) -> np.ndarray:
         """poses (N, 3) -> (N, V, 2) the face's corners in window coordinates (columns shifted
         by half a pixel, as the running sum is read)."""
         c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-        H = self._H[np.zeros(len(poses), np.intp) if owner is None else owner]  # (N, 3, 3)
+        owner = np.zeros(len(poses), np.intp) if owner is None else owner
+        H = self._H[owner]  # (N, 3, 3)
         # H @ [[c, -s, x], [s, c, y], [0, 0, 1]]: each pose's homography from body to window.
         M = np.empty((len(poses), 3, 3))
         M[:, :, 0] = c * H[:, :, 0] + s * H[:, :, 1]
         M[:, :, 1] = c * H[:, :, 1] - s * H[:, :, 0]
         M[:, :, 2] = poses[:, :1] * H[:, :, 0] + poses[:, 1:2] * H[:, :, 1] + H[:, :, 2]
-        q = M @ self._V  # (N, 3, V)
-        return np.stack([q[:, 0] / q[:, 2], q[:, 1] / q[:, 2]], axis=-1)
+        q = M @ (self._V[0] if len(self._V) == 1 else self._V[owner])  # (N, 3, V)
+        out = np.empty((len(poses), q.shape[2], 2))
+        np.divide(q[:, 0], q[:, 2], out=out[..., 0])
+        np.divide(q[:, 1], q[:, 2], out=out[..., 1])
+        return out
 
-    def __call__(self, poses: np.ndarray, samples: int | None = None, owner=None) -> np.ndarray:
-        """poses (N, 3) -> (N,) scores; ``samples`` per edge (default: the score's own; fewer
-        for a coarse look at many poses); ``owner`` (N,): each pose's window (default: the
-        first)."""
-        samples = samples or self._samples
+    def __call__(self, poses: np.ndarray, coarse: int = 1, owner=None) -> np.ndarray:
+        """poses (N, 3) -> (N,) scores; ``coarse``: that many times fewer samples per edge (a
+        cheaper look at many poses); ``owner`` (N,): each pose's window (default: the first)."""
         owner = np.zeros(len(poses), np.intp) if owner is None else np.asarray(owner, np.intp)
         p = self.polygons(poses, owner).astype(np.float32)
-        d = p[:, self._next] - p
-        t = ((np.arange(samples) + 0.5) / samples).astype(np.float32)
-        x = p[..., None, 0] + t * d[..., None, 0]
-        y = p[..., None, 1] + t * d[..., None, 1]
-        w = self._w[owner][:, None, None]
-        np.clip(x, 0.0, (w - 1e-3).astype(np.float32), out=x)
-        np.clip(y, 0.0, (self._h[owner][:, None, None] - 1 - 1e-3).astype(np.float32), out=y)
+        d = p[:, self._next] - p  # (N, V, 2)
+        edge, t, wt = self._table(coarse)
+        if len(edge) == 1:
+            e, t, wt = edge[0], t[0], wt[0]
+            px, py, dx, dy = p[:, e, 0], p[:, e, 1], d[:, e, 0], d[:, e, 1]  # (N, M)
+        else:
+            t, wt = t[owner], wt[owner]
+            # Each sample's corner and edge, read from the flat (N * V, 2) arrays.
+            j = edge[owner] + (np.arange(len(poses)) * p.shape[1])[:, None]
+            pf, df = p.reshape(-1, 2), d.reshape(-1, 2)
+            px, py, dx, dy = pf[j, 0], pf[j, 1], df[j, 0], df[j, 1]
+        x = px + t * dx
+        y = py + t * dy
+        w = self._w[owner][:, None]
+        # Clamped into the window (the bare ufuncs: np.clip's wrapper costs more than the work).
+        np.minimum(np.maximum(x, 0.0, out=x), (w - 1e-3).astype(np.float32), out=x)
+        np.minimum(np.maximum(y, 0.0, out=y), (self._h[owner][:, None] - 1 - 1e-3).astype(np.float32), out=y)
         ix, iy = x.astype(np.intp), y.astype(np.intp)
         x -= ix
         y -= iy
-        k = self._off[owner][:, None, None] + iy * (w + 1) + ix
+        k = self._off[owner][:, None] + iy * (w + 1) + ix
         C = self._C
         c0 = C[k]
         top = c0 + x * (C[k + 1] - c0)
         k += w + 1
         c0 = C[k]
         top += y * (c0 + x * (C[k + 1] - c0) - top)
-        s = np.einsum("nvm,nv->n", top, d[..., 1]) / samples
+        s = np.einsum("nm,nm->n", top, dy * wt)
         # The same line integral of x gives the polygon's signed area: its sign is the winding.
         area = np.einsum("nv,nv->n", p[..., 0] + 0.5 * d[..., 0], d[..., 1])
         return np.where(area < 0, -s, s)

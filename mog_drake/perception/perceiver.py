@@ -108,6 +108,8 @@ REFINED_STARTS = 3
 PEAK_SHARE = 0.7  # a peak scoring less than this share of the best is not refined
 SPREAD_GRID = 5  # centres per axis of a split's start grid
 COARSE = 3  # starts are scored with this many times fewer samples per edge
+EDGE_SAMPLES = 4  # samples of an edge at the least
+SAMPLES_PER_PIXEL = 1.0  # samples of an edge per pixel of its length
 # A clean fit's score falls short of its area (pixels) by at most this per pixel of its
 # perimeter. Right fits lose about 0.3 (outline pixels partly covered: the part of a pixel
 # outside the top counts against the fit); a fit across two instances loses 2.5 per pixel of
@@ -126,6 +128,7 @@ class _Window:
     origin: tuple
     lower: np.ndarray
     centre: np.ndarray
+    k: int = 0  # the shape (index into Perceiver.names)
 
 
 @dataclass
@@ -142,6 +145,7 @@ class _Fit:
     lower: np.ndarray
     score: float
     clean: bool
+    k: int = 0  # the shape (index into Perceiver.names)
 
     @property
     def spill(self) -> int:
@@ -154,6 +158,16 @@ def _explain(before: np.ndarray, fits: list[_Fit], colour: np.ndarray) -> np.nda
     for f in fits:
         out[f.window] |= f.inside & colour[f.window]
     return out
+
+
+def _clean_apart(fits: list[_Fit], im) -> bool:
+    """Whether every fit is clean and no pixel lies inside two of them."""
+    if not all(f.clean for f in fits):
+        return False
+    count = np.zeros(im.shape, dtype=np.uint8)
+    for f in fits:
+        count[f.window] += f.inside
+    return int(count.max()) <= 1
 
 
 _CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
@@ -169,6 +183,7 @@ class _Image:
         self.shape = z.shape
         self.xy = P[..., :2].reshape(-1, 2)
         self.explained = np.zeros(z.shape, dtype=bool)
+        self.samples: dict[int, tuple] = {}  # shape -> samples per edge (Perceiver._edge_samples)
 
     def window(self, centre, r: float, height: float, pad: int = 3):
         """Slices (rows, cols) of the pixels that can see the disc (centre, r) at ``height``."""
@@ -289,24 +304,50 @@ class Perceiver:
         obj = ok & (z > cfg.min_height) & (z < cfg.max_height)
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.
         area_px = np.where(obj, depth**2 / (fx * fy), 0.0)
-        # Nearest chromaticity: argmin |c - k|^2 = argmin |k|^2 - 2 c.k.
+        # Nearest chromaticity: argmin |c - k|^2 = argmin |k|^2 - 2 c.k. Written out per
+        # channel, not as a matrix product: a product this tall is one OpenBLAS threads, and
+        # its worker then spins on the other core for about 0.1 s after it (measured: twice
+        # the CPU time of the wall time per image), a core the simulator and the planner need.
         obj_px = np.flatnonzero(obj)
         ch = chromaticity(rgb[..., :3].reshape(-1, 3)[obj_px])
-        obj_cls = self.colour_class[np.argmin((self.chroma**2).sum(-1) - 2 * ch @ self.chroma.T, axis=1)]
+        K = self.chroma
+        dots = ch[:, 0, None] * K[:, 0] + ch[:, 1, None] * K[:, 1] + ch[:, 2, None] * K[:, 2]
+        obj_cls = self.colour_class[np.argmin((K**2).sum(-1) - 2 * dots, axis=1)]
         obj_z = z.ravel()[obj_px]
         cls = np.full(z.shape, -1, dtype=np.int32)
         cls.ravel()[obj_px] = obj_cls
         im = _Image(P, z, cls, Pinhole(X_WC, intrinsics))
         rng = np.random.default_rng(seed)
         found: list[SceneObject] = []
-        # Large shapes first: their fits then mask their pixels for the smaller ones.
+        # Large shapes first: their fits then mask their pixels for the smaller ones. The
+        # lone instances of shapes that cannot take each other's pixels (another colour, or
+        # a top at another height) are fitted in one batch, the touching instances of each
+        # shape after them; a shape that can take a pending one's pixels waits for its fits.
         order = sorted(range(len(self.names)), key=lambda k: -self.area[k])
+        found_by: dict[int, list[SceneObject]] = {k: [] for k in order}
+        pending: list[tuple] = []  # (k, labels, colour mask, several) whose lone windows wait
+        wins: list[_Window] = []
+
+        def flush():
+            colours = {k: colour for k, _, colour, _ in pending}
+            for f in self._fit_windows(im, wins) if wins else ():
+                im.explained[f.window] |= f.inside & colours[f.k][f.window]
+                found_by[f.k].append(SceneObject(self.names[f.k], *f.pose))
+            for k, labels, colour, several in pending:
+                for label, idx, n_est in several:
+                    found_by[k].extend(self._split(k, im, labels, label, idx, n_est, colour, rng))
+            pending.clear()
+            wins.clear()
+
         for k in order:
-            name = self.names[k]
-            shape = self.library[name]
+            if any(self._interact(k, j) for j, *_ in pending):
+                flush()
+            shape = self.library[self.names[k]]
             area = self.area[k]
             mine = obj_px[(obj_cls == self.colour_class[k]) & (np.abs(obj_z - shape.height) < cfg.top_band)]
             labels, members = components(mine, z.shape)
+            if not members:
+                continue
             colour = cls == self.colour_class[k]
             lone, several = [], []
             for label, idx in enumerate(members, start=1):
@@ -314,70 +355,13 @@ class Perceiver:
                 if visible >= cfg.min_fraction * area:
                     n_est = max(int(round(visible / area)), 1)
                     (lone if n_est == 1 else several).append((label, idx, n_est))
-            # Lone instances first, all at once: one batch of poses per search step.
-            wins = [self._window(k, im, labels, label, im.xy[idx].mean(axis=0)) for label, idx, _ in lone]
-            wins = [w for w in wins if w is not None]
-            for f in self._fit_windows(k, im, wins) if wins else ():
-                im.explained[f.window] |= f.inside & colour[f.window]
-                found.append(SceneObject(name, *f.pose))
-            for label, idx, n_est in several:
-                pts = im.xy[idx]
-                best = None  # (score of the split, explained mask, objects)
-                for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
-                    before = im.explained
-                    fits: list[_Fit] = []
-                    # Best first: every seed left is fitted, and the fit that explains most
-                    # (an instance standing clear of the others) is kept; its pixels then
-                    # count against the next ones.
-                    left = list(seeds)
-                    while left:
-                        im.explained = _explain(before, fits, colour)
-                        tries = [
-                            (
-                                self._fit(
-                                    k,
-                                    im,
-                                    labels,
-                                    label,
-                                    c,
-                                    spread=cfg.split_spread if len(seeds) > 2 else 0.0,
-                                ),
-                                i,
-                            )
-                            for i, c in enumerate(left)
-                        ]
-                        tries = [(f, i) for f, i in tries if f is not None]
-                        if not tries:
-                            break
-                        fit, i = max(tries, key=lambda t: t[0].score)
-                        fits.append(fit)
-                        left.pop(i)
-                    # Each instance fitted again with all the others' pixels explained: the
-                    # first fits of a split saw their neighbours' pixels as theirs to take,
-                    # and may lie across two of them.
-                    # (Not needed when every fit is clean already.)
-                    for _ in range(cfg.refits if len(fits) > 1 and not all(f.clean for f in fits) else 0):
-                        for i, f in enumerate(fits):
-                            im.explained = _explain(before, fits[:i] + fits[i + 1 :], colour)
-                            centroid = transform(polygon_centroid(shape.vertices)[None], *f.pose)[0]
-                            fit = self._fit(k, im, labels, label, centroid, start=f.pose)
-                            if fit is not None:
-                                fits[i] = fit
-                    im.explained = _explain(before, fits, colour)
-                    spill = sum(f.spill for f in fits)
-                    # Pixels of the component explained, less each lower pixel under a fit as
-                    # _fit weighs it: two fits lying across two bars side by side explain most
-                    # of them but spill onto the table between.
-                    score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * spill
-                    if best is None or score > best[0]:
-                        best = (score, im.explained, [SceneObject(name, *f.pose) for f in fits])
-                    im.explained = before
-                    # Every instance fitted, each covering its own pixels and nothing that rules
-                    # it out: no other split can do better.
-                    if len(fits) == len(seeds) and all(f.clean for f in fits):
-                        break
-                im.explained = best[1]
-                found.extend(best[2])
+            found_windows = (
+                self._window(k, im, labels, label, im.xy[idx].mean(axis=0)) for label, idx, _ in lone
+            )
+            wins.extend(w for w in found_windows if w is not None)
+            pending.append((k, labels, colour, several))
+        flush()
+        found = [o for k in order for o in found_by[k]]
         # Object pixels no fitted polygon explains (a prism knocked onto its side, say, or
         # something not in the library): reported, so nobody calls such a table clear.
         covered = np.zeros(z.shape, dtype=bool)
@@ -407,6 +391,85 @@ class Perceiver:
         scene.meta["overlap_corrections"] = moved
         return scene
 
+    def _edge_samples(self, k: int, im: _Image) -> tuple:
+        """Samples of each edge of shape ``k``'s top face: about one per pixel of its length
+        as seen at the table's centre (at least EDGE_SAMPLES), the same for every window of
+        the shape, so that its windows share one table of samples."""
+        if k not in im.samples:
+            shape = self.library[self.names[k]]
+            cx, cy = (self.table[0] + self.table[1]) / 2, (self.table[2] + self.table[3]) / 2
+            uv = im.cam.project(transform(shape.vertices, cx, cy, 0.0), shape.height)
+            lengths = np.linalg.norm(np.roll(uv, -1, axis=0) - uv, axis=1)
+            im.samples[k] = tuple(max(int(math.ceil(n * SAMPLES_PER_PIXEL)), EDGE_SAMPLES) for n in lengths)
+        return im.samples[k]
+
+    def _interact(self, k: int, j: int) -> bool:
+        """Whether shapes k and j can take each other's pixels: one colour, tops within two
+        height bands."""
+        return (
+            self.colour_class[k] == self.colour_class[j]
+            and abs(self.library[self.names[k]].height - self.library[self.names[j]].height)
+            < 2 * self.config.top_band
+        )
+
+    def _split(self, k: int, im: _Image, labels, label: int, idx, n_est: int, colour, rng) -> list:
+        """Fits ``n_est`` touching instances of shape ``k`` to component ``label`` (its flat
+        pixel indices ``idx``): the objects of the best split, their pixels left explained."""
+        cfg = self.config
+        name = self.names[k]
+        shape = self.library[name]
+        pts = im.xy[idx]
+        best = None  # (score of the split, explained mask, objects)
+        for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
+            before = im.explained
+            fits: list[_Fit] = []
+            # Best first: every seed left is fitted, and the fit that explains most
+            # (an instance standing clear of the others) is kept; its pixels then
+            # count against the next ones.
+            # (All the seeds left are fitted in one batch: one search, not one each.)
+            left = list(seeds)
+            spread = cfg.split_spread if len(seeds) > 2 else 0.0
+            while left:
+                im.explained = _explain(before, fits, colour)
+                tries = self._fit_many(k, im, labels, label, left, spread=spread)
+                if not tries:
+                    break
+                # Fitted together on the same evidence, every instance clean and none
+                # overlapping another: each covers its own pixels, so fitting them one
+                # by one would only fit clean instances again.
+                if not fits and len(tries) == len(left) > 1 and _clean_apart([f for f, _ in tries], im):
+                    fits = [f for f, _ in tries]
+                    break
+                fit, i = max(tries, key=lambda t: t[0].score)
+                fits.append(fit)
+                left.pop(i)
+            # Each instance fitted again with all the others' pixels explained: the
+            # first fits of a split saw their neighbours' pixels as theirs to take,
+            # and may lie across two of them.
+            # (Not needed when every fit is clean already.)
+            for _ in range(cfg.refits if len(fits) > 1 and not all(f.clean for f in fits) else 0):
+                for i, f in enumerate(fits):
+                    im.explained = _explain(before, fits[:i] + fits[i + 1 :], colour)
+                    centroid = transform(polygon_centroid(shape.vertices)[None], *f.pose)[0]
+                    fit = self._fit(k, im, labels, label, centroid, start=f.pose)
+                    if fit is not None:
+                        fits[i] = fit
+            im.explained = _explain(before, fits, colour)
+            spill = sum(f.spill for f in fits)
+            # Pixels of the component explained, less each lower pixel under a fit as
+            # _fit weighs it: two fits lying across two bars side by side explain most
+            # of them but spill onto the table between.
+            score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * spill
+            if best is None or score > best[0]:
+                best = (score, im.explained, [SceneObject(name, *f.pose) for f in fits])
+            im.explained = before
+            # Every instance fitted, each covering its own pixels and nothing that rules
+            # it out: no other split can do better.
+            if len(fits) == len(seeds) and all(f.clean for f in fits):
+                break
+        im.explained = best[1]
+        return best[2]
+
     def _window(self, k: int, im: _Image, labels: np.ndarray, label: int, centre):
         """The evidence around ``centre`` for shape ``k`` and its score (`_Window`), or None
         when fewer than 5 unexplained pixels of component ``label`` lie near it."""
@@ -426,16 +489,13 @@ class Perceiver:
         ruled_out = lower | (
             at_top & ((im.cls[rows, cols] != self.colour_class[k]) | im.explained[rows, cols])
         )
-        evidence = np.where(pos, 1.0, np.where(ruled_out, -NEGATIVE_WEIGHT, 0.0))
+        evidence = np.where(
+            pos, np.float32(1.0), np.where(ruled_out, np.float32(-NEGATIVE_WEIGHT), np.float32(0.0))
+        )
         origin = (cols.start, rows.start)
         v0 = shape.vertices
-        # A sample per pixel along the longest edge (as seen at the centre).
-        u, v = zip(*(im.cam.project_point(x, y, h) for x, y in transform(v0, centre[0], centre[1], 0.0)))
-        samples = max(
-            int(math.ceil(max(math.hypot(u[i - 1] - u[i], v[i - 1] - v[i]) for i in range(len(u))))), 4
-        )
-        score = PolygonScore(evidence, origin, im.cam.plane(h), v0, samples)
-        return _Window(score, rows, cols, origin, lower, np.asarray(centre, float))
+        score = PolygonScore(evidence, origin, im.cam.plane(h), v0, self._edge_samples(k, im))
+        return _Window(score, rows, cols, origin, lower, np.asarray(centre, float), k)
 
     def _fit(self, k: int, im: _Image, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
         """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
@@ -446,61 +506,85 @@ class Perceiver:
         win = self._window(k, im, labels, label, centre)
         if win is None:
             return None
-        return self._fit_windows(k, im, [win], start=start, spread=spread)[0]
+        return self._fit_windows(im, [win], start=start, spread=spread)[0]
 
-    def _fit_windows(self, k: int, im: _Image, wins: list, start=None, spread=0.0) -> list:
-        """Fits shape ``k`` in each window at once (one batch of poses per step, the windows
-        told apart by owner): lone instances of one shape cost one search, not one each."""
-        name = self.names[k]
-        v0 = self.library[name].vertices
+    def _fit_many(self, k: int, im: _Image, labels: np.ndarray, label: int, centres, spread=0.0) -> list:
+        """`_fit` from each of ``centres`` at once (one batch of poses per search step):
+        [(fit, index into centres)] for the centres with pixels left to fit."""
+        wins = [(self._window(k, im, labels, label, c), i) for i, c in enumerate(centres)]
+        wins = [(w, i) for w, i in wins if w is not None]
+        if not wins:
+            return []
+        fits = self._fit_windows(im, [w for w, _ in wins], spread=spread)
+        return [(f, i) for f, (_, i) in zip(fits, wins)]
+
+    def _fit_windows(self, im: _Image, wins: list, start=None, spread=0.0) -> list:
+        """Fits each window's shape in it, all at once (one batch of poses per search step,
+        the windows told apart by owner): lone instances cost one search, not one each, and
+        shapes share it too."""
         score = wins[0].score if len(wins) == 1 else PolygonScore.stack([w.score for w in wins])
-        coarse = max(score._samples // COARSE, 4)
         if start is not None:
             starts = np.array([[start]], float)
         else:
-            c_body = polygon_centroid(v0)
-            ths = np.arange(0.0, 2 * math.pi / self.sym[name], START_ANGLE_STEP)
-            offs = np.column_stack(
-                [
-                    np.cos(ths) * c_body[0] - np.sin(ths) * c_body[1],
-                    np.sin(ths) * c_body[0] + np.cos(ths) * c_body[1],
-                ]
-            )
-            # Centres: each window's own, or a grid around it (spread), each at every angle.
+            # Centres: each window's own, or a grid around it (spread), each at every angle
+            # over its shape's symmetry.
             g = np.linspace(-spread, spread, SPREAD_GRID) if spread else np.zeros(1)
             gx, gy = (a.ravel() for a in np.meshgrid(g, g))
-            centres = np.stack([w.centre for w in wins])[:, None, :] + np.stack([gx, gy], axis=1)[None]
-            C, A = centres.shape[1], len(ths)
-            starts = np.stack(
-                [
-                    centres[:, :, None, 0] - offs[None, None, :, 0],
-                    centres[:, :, None, 1] - offs[None, None, :, 1],
-                    np.broadcast_to(ths, (len(wins), C, A)),
-                ],
-                axis=-1,
-            )  # (F, C, A, 3)
-            owner = np.repeat(np.arange(len(wins)), C * A)
-            s0 = score(starts.reshape(-1, 3), coarse, owner=owner).reshape(len(wins), C, A)
+            grid = np.stack([gx, gy], axis=1)
+            per_win = []
+            for w in wins:
+                name = self.names[w.k]
+                c_body = polygon_centroid(self.library[name].vertices)
+                ths = np.arange(0.0, 2 * math.pi / self.sym[name], START_ANGLE_STEP)
+                offs = np.column_stack(
+                    [
+                        np.cos(ths) * c_body[0] - np.sin(ths) * c_body[1],
+                        np.sin(ths) * c_body[0] + np.cos(ths) * c_body[1],
+                    ]
+                )
+                centres = w.centre + grid  # (C, 2)
+                per_win.append(
+                    np.stack(
+                        [
+                            centres[:, None, 0] - offs[None, :, 0],
+                            centres[:, None, 1] - offs[None, :, 1],
+                            np.broadcast_to(ths, (len(centres), len(ths))),
+                        ],
+                        axis=-1,
+                    )
+                )  # (C, A, 3)
+            sizes = [x.shape[0] * x.shape[1] for x in per_win]
+            owner = np.repeat(np.arange(len(wins)), sizes)
+            s_all = score(np.concatenate([x.reshape(-1, 3) for x in per_win]), COARSE, owner=owner)
             picked = []
-            for f in range(len(wins)):
+            for sw, cut in zip(per_win, np.split(s_all, np.cumsum(sizes)[:-1])):
+                C, A = sw.shape[:2]
+                s0 = cut.reshape(C, A)
                 if C == 1:
                     # The best few distinct peaks of the (circular) angle sweep: the best start
                     # is not always in the right basin (a trapezoid seen from its centroid).
-                    sf = s0[f, 0]
+                    sf = s0[0]
                     peaks = [j for j in range(A) if sf[j] >= sf[j - 1] and sf[j] >= sf[(j + 1) % A]]
                     top = sorted(peaks, key=lambda j: -sf[j])[:REFINED_STARTS]
                     top = top[:1] + [j for j in top[1:] if sf[j] >= PEAK_SHARE * sf[top[0]]]
-                    chosen = [starts[f, 0, j] for j in top]
+                    chosen = [sw[0, j] for j in top]
                 else:
                     # The best angle of each centre competes; the best few centres go on.
-                    j = np.argmax(s0[f], axis=1)
-                    best = np.argsort(-s0[f, np.arange(C), j])[:REFINED_STARTS]
-                    chosen = [starts[f, c, j[c]] for c in best]
+                    j = np.argmax(s0, axis=1)
+                    best = np.argsort(-s0[np.arange(C), j])[:REFINED_STARTS]
+                    chosen = [sw[c, j[c]] for c in best]
                 picked.append(chosen + [chosen[0]] * (REFINED_STARTS - len(chosen)))
             starts = np.array(picked)  # (F, REFINED_STARTS, 3)
         poses, values = quadratic_search(score, starts, np.array(FIT_STEP), FIT_TOL)
         return [
-            self._finish(w, v0, self.library[name].height, pose, value, im)
+            self._finish(
+                w,
+                self.library[self.names[w.k]].vertices,
+                self.library[self.names[w.k]].height,
+                pose,
+                value,
+                im,
+            )
             for w, pose, value in zip(wins, poses, values)
         ]
 
@@ -510,9 +594,18 @@ class Perceiver:
         best[2] = math.remainder(best[2], 2 * math.pi)
         pose = tuple(float(v) for v in best)
         poly = im.cam.project(transform(v0, *pose), h)
-        inside = pixels_inside(poly, win.lower.shape, win.origin)
-        nxt = np.roll(poly, -1, axis=0)
+        # Only the pixels of the polygon's bounding box can lie inside it.
+        hgt, wid = win.lower.shape
+        c0 = min(max(math.floor(poly[:, 0].min()) - win.origin[0], 0), wid)
+        c1 = min(max(math.ceil(poly[:, 0].max()) + 1 - win.origin[0], c0), wid)
+        r0 = min(max(math.floor(poly[:, 1].min()) - win.origin[1], 0), hgt)
+        r1 = min(max(math.ceil(poly[:, 1].max()) + 1 - win.origin[1], r0), hgt)
+        inside = np.zeros((hgt, wid), dtype=bool)
+        inside[r0:r1, c0:c1] = pixels_inside(
+            poly, (r1 - r0, c1 - c0), (win.origin[0] + c0, win.origin[1] + r0)
+        )
+        nxt = poly[np.arange(1, len(poly) + 1) % len(poly)]
         area = 0.5 * abs(float(np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1])))
         perimeter = float(np.linalg.norm(nxt - poly, axis=1).sum())
         clean = float(value) >= area - CLEAN_EDGE * perimeter
-        return _Fit(pose, (win.rows, win.cols), inside, win.lower, float(value), clean)
+        return _Fit(pose, (win.rows, win.cols), inside, win.lower, float(value), clean, win.k)

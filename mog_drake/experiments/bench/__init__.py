@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import statistics
+
 from mog_drake.tables import format_table
 
 BENCHES = ("geometry", "verifier", "agreement", "perception", "station", "replanning", "hold")
@@ -38,6 +40,14 @@ def run(
         from mog_drake.experiments.bench.station import bench_perception
 
         rows = bench_perception(scenes, seed, toppled)
+        t = [r["time_s"] for r in rows]
+        text = format_table(rows) + (
+            f"\nper image: median {statistics.median(t):.3f} s, worst {max(t):.3f} s; "
+            f"found {sum(r['found'] for r in rows)}, missed {sum(r['missed'] for r in rows)}, "
+            f"extra {sum(r['extra'] for r in rows)}; worst position {max(r['pos_max_mm'] for r in rows):.2f} mm, "
+            f"worst yaw {max(r['yaw_max_deg'] for r in rows):.2f} deg"
+        )
+        return {what: rows}, text
     elif what == "station":
         from mog_drake.experiments.bench.station import bench_station
 
