@@ -679,13 +679,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("bench", help="benchmarks that print a table")
     sp.add_argument(
-        "what", choices=["geometry", "verifier", "agreement", "perception", "station", "replanning", "hold"]
+        "what",
+        choices=[
+            "geometry",
+            "verifier",
+            "agreement",
+            "perception",
+            "station",
+            "replanning",
+            "hold",
+            "bodies",
+        ],
     )
     sp.add_argument(
         "--scenes",
         type=int,
         default=20,
-        help="scenes per class (geometry, verifier); tables (perception, replanning, hold)",
+        help="scenes per class (geometry, verifier); tables (perception, replanning, hold, bodies)",
     )
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")

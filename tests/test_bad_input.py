@@ -121,6 +121,8 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     one_line_error(*_pick(capsys, binary)[::2], "not a text file")
     typed = _write(tmp_path, "typed.yaml", "planner: {hold_s: abc}\n")
     one_line_error(*_pick(capsys, typed)[::2], "planner.hold_s", "abc")
+    bodies = _write(tmp_path, "bodies.yaml", "planner: {check_bodies: all}\n")
+    one_line_error(*_pick(capsys, bodies)[::2], "planner.check_bodies", "all")
     # Unreadable: as root every file is readable, so the OS's refusal is modelled.
     locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
     real = Path.read_bytes
@@ -411,6 +413,7 @@ _scenario_keys = st.sampled_from(
         "planner.group_radius",
         "planner.mode",
         "planner.diameter_condition",
+        "planner.check_bodies",
         "planner.push_speed",
         "planner.max_pushes",
         "latency.mode",

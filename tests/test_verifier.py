@@ -108,6 +108,54 @@ def test_only_reachable_objects_are_simulated():
     assert objects_in_reach(scene, (0,), GripperGeometry(), 0.02) == [0, 1]
 
 
+def test_a_grasp_simulates_what_its_jaws_and_group_can_touch():
+    """objects_at_grasp: the group, an object in the jaws' path, and one touching a group
+    object; not a neighbour within the group's reach that this grasp's jaws pass by."""
+    from mog_drake.geometry import GripperGeometry, objects_at_grasp
+
+    scene = make_scene(
+        [
+            ("thin_bar", 0.0, 0.0, math.pi / 2),  # the group: a bar across the closing axis x
+            ("small_yellow_cube", 0.035, 0.0, 0.0),  # in the right jaw's path
+            ("thin_bar", 0.0, 0.042, math.pi / 2),  # touching the group bar's disc, off the jaws
+            ("thin_bar", 0.0, -0.055, 0.0),  # within the group's reach, clear of this grasp
+            ("small_yellow_cube", 0.2, 0.2, 0.0),  # far away
+        ]
+    )
+    jaws = GripperGeometry()
+    assert objects_in_reach(scene, (0,), jaws, 0.02) == [0, 1, 2, 3]
+    assert objects_at_grasp(scene, (0,), (0.0, 0.0, 0.0), jaws, 0.005) == [0, 1, 2]
+    # Turned a quarter, the jaws close along y and their sweep (47.5 mm each way) comes within
+    # 4 mm of object 3; object 1 stays, within the turning group bar's disc.
+    assert objects_at_grasp(scene, (0,), (0.0, 0.0, math.pi / 2), jaws, 0.005) == [0, 1, 2, 3]
+    assert objects_at_grasp(scene, (0,), (0.0, 0.0, math.pi / 2), jaws, 0.003) == [0, 1, 2]
+
+
+def test_checks_of_one_grasp_agree_whichever_bodies_are_simulated():
+    """The same verdicts, lifted objects included, simulating the group's whole reach and only
+    what each grasp can touch; a bad setting is refused."""
+    from mog_drake.errors import MogError
+
+    scene = make_scene(
+        [
+            ("thick_bar", -0.012, 0.0, math.pi / 2),
+            ("small_yellow_cube", 0.010, 0.002, 0.0),
+            ("thin_bar", 0.0, 0.06, 0.0),
+            ("thin_bar", 0.05, -0.05, 0.5),
+        ],
+        group=(0, 1),
+    )
+    whole = DrakeVerifier(VerifierConfig(bodies="group"))
+    mine = DrakeVerifier(VerifierConfig(bodies="grasp"))
+    for grasp in ([0.0, 0.0, 0.0], [-0.001, 0.001, 0.2], [0.0, 0.0, math.pi / 2]):
+        a, b = whole.check(scene, (0, 1), grasp), mine.check(scene, (0, 1), grasp)
+        assert (a.success, sorted(a.lifted)) == (b.success, sorted(b.lifted))
+        assert len(mine._sim.bodies) <= len(whole._sim.bodies)
+    assert len(whole._sim.bodies) == 4 and len(mine._sim.bodies) < 4
+    with pytest.raises(MogError, match="bodies"):
+        DrakeVerifier(VerifierConfig(bodies="all"))
+
+
 def test_check_simulate_cli(tmp_path, capsys):
     import json
 

@@ -58,6 +58,29 @@ def objects_in_reach(scene, group, gripper, margin: float) -> list[int]:
     return sorted(set(int(i) for i in near) | set(int(i) for i in group))
 
 
+def objects_at_grasp(scene, group, grasp, gripper, margin: float) -> list[int]:
+    """The group plus every object that the check of one grasp u = ``grasp`` can touch: whose
+    outline comes within ``margin`` of the open jaws' swept rectangle (jaw to jaw, both jaws
+    included) or of a group object's bounding disc (a squeezed object slides and turns about
+    its centre). A tighter set than `objects_in_reach`, which holds what any grasp of the
+    group can touch."""
+    polys = scene.polygons()
+    x0, _, y0, y1 = gripper.boxes()["left_jaw"]
+    corners = np.array([[x0, y0], [-x0, y0], [-x0, y1], [x0, y1]])
+    x, y, th = (float(v) for v in grasp)
+    c, s = np.cos(th), np.sin(th)
+    swept = shapely.Polygon(
+        np.column_stack(
+            [c * corners[:, 0] - s * corners[:, 1] + x, s * corners[:, 0] + c * corners[:, 1] + y]
+        )
+    )
+    g = [int(i) for i in group]
+    reach = shapely.union_all([swept, *shapely.buffer(shapely.points(polys.centers[g]), polys.radii[g])])
+    outlines = np.array([shapely.Polygon(polys.polygon(i)) for i in range(len(polys))], dtype=object)
+    near = np.flatnonzero(shapely.distance(reach, outlines) < margin)
+    return sorted(set(int(i) for i in near) | set(g))
+
+
 def adjacent_groups(polys, gap: float, w_g: float) -> list[tuple[int, ...]]:
     """For each object, it and the objects whose outlines come within ``gap`` (m) of its own,
     as groups (sorted tuples, largest first, duplicates and strict subsets of another dropped,

@@ -44,6 +44,11 @@ class PlannerSpec:
     # never (an extension; see VerifierConfig.settle_window). `mog-drake bench hold` on 16
     # tables: the same verdict on all 178 checks, 33 % less time.
     settle_window_s: float = 0.5
+    # Which objects the physics check simulates besides the group (an extension; see
+    # VerifierConfig.bodies): "group", every object any grasp of the group can reach; or
+    # "grasp", only what this grasp's jaws and the group can touch. `mog-drake bench bodies`
+    # compares the two on the grasps the picking planner checks.
+    check_bodies: str = "grasp"
     # After a failed physics check, try a new closing axis before other points on a failed one
     # (an extension; the paper's experiments go down the ranked list).
     vary_axis: bool = True
@@ -117,6 +122,8 @@ class PlannerSpec:
             raise MogError(
                 f"planner: settle_window_s must be in [0, hold_s = {self.hold_s:g}] s, got {self.settle_window_s}"
             )
+        if self.check_bodies not in ("group", "grasp"):
+            raise MogError(f"planner.check_bodies must be one of group, grasp, got {self.check_bodies!r}")
         if not 0 < self.group_radius <= 0.2:
             raise MogError(f"planner: group_radius must be in (0, 0.2] m, got {self.group_radius}")
         if self.max_pushes < 0 or self.push_checks < 0 or self.push_below < 0:

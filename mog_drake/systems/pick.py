@@ -38,6 +38,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
         report_partial_lifts=2 if spec.partial_lifts else 0,
         hold_time=spec.hold_s,
         settle_window=spec.settle_window_s,
+        bodies=spec.check_bodies,
     )
     # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
     default, jaws = VerifierConfig(), GripperGeometry()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from mog_drake.errors import MogError
@@ -155,22 +157,17 @@ def hold_verifiers(window: float):
     return planner, ref, fast
 
 
-def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=None) -> dict:
-    """The picking's physics check with and without ending the hold once every object has
-    settled (``VerifierConfig.settle_window``), on the grasps the picking planner checks.
-
-    Per cluttered isrr33 table (seeds seed .. seed+tables-1): its first four multi-object
-    groups and four random lone objects, each planned as the picking planner plans it (the
-    built-in scenario: up to 4 physics checks, stopping at a success); every checked grasp is
-    checked again with the settled-hold exit. Then a bar laid on its side, alone, gripped
-    along 4 random axes from end to end to across (a grip that lifts and later slips).
-    Returns per kind (multi, lone, on_side) the checks, successes, verdicts that differ
-    (success or lifted objects), and mean wall and simulated seconds of each; and the
-    differing checks, to replay."""
+def _replay_checks(planner, ref, fast, tables: int, seed: int, progress=None) -> list[dict]:
+    """Every physics check the picking planner makes on seeded tables, made by two checks:
+    ``ref`` (whose verdict the planner goes on with) and ``fast``. Per cluttered isrr33 table
+    (seeds seed .. seed+tables-1): its first four multi-object groups and four random lone
+    objects, each planned as the picking planner plans it (up to 4 physics checks, stopping
+    at a success); then a bar laid on its side, alone, gripped along 4 random axes from end to
+    end to across (a grip that lifts and later slips). Returns one record per check: kind
+    (multi, lone, on_side), scene, group, grasp, and both results (a: ref, b: fast)."""
     from mog_drake.geometry import ranked_groups
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene
 
-    planner, ref, fast = hold_verifiers(window)
     log: list[dict] = []
 
     class _Both:
@@ -187,6 +184,7 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
                     "grasp": list(grasp),
                     "a": a,
                     "b": b,
+                    "bodies": (len(ref._sim.bodies), len(fast._sim.bodies)),
                 }
             )
             return a
@@ -212,10 +210,23 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
             both.check(side, [0], (0.0, 0.0, yaw + turn))
         if progress:
             progress(k - seed + 1, tables)
+    return log
 
-    def same(a, b) -> bool:
-        return a.success == b.success and (not a.complete or sorted(a.lifted) == sorted(b.lifted))
 
+def _same(a, b) -> bool:
+    """The same verdict: success, and (for a check that ran to its end) the objects lifted."""
+    return a.success == b.success and (not a.complete or sorted(a.lifted) == sorted(b.lifted))
+
+
+def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=None) -> dict:
+    """The picking's physics check with and without ending the hold once every object has
+    settled (``VerifierConfig.settle_window``), on the grasps the picking planner checks
+    (`_replay_checks`). Returns per kind (multi, lone, on_side) the checks, successes,
+    verdicts that differ (success or lifted objects), and mean wall and simulated seconds of
+    each; and the differing checks, to replay."""
+    planner, ref, fast = hold_verifiers(window)
+    log = _replay_checks(planner, ref, fast, tables, seed, progress)
+    same = _same
     rows = []
     for kind in ("multi", "lone", "on_side"):
         got = [r for r in log if r["kind"] == kind]
@@ -256,6 +267,94 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
         "wall_settled_s": wall[1],
         "differing": differ,
     }
+
+
+def bench_bodies(tables: int = 5, seed: int = 0, progress=None) -> dict:
+    """The picking's physics check simulating every object any grasp of the group can reach
+    (``VerifierConfig.bodies`` "group") against only what this grasp can touch ("grasp"), on
+    the grasps the picking planner checks (`_replay_checks`). Returns per kind (multi, lone,
+    on_side) the checks, successes, verdicts that differ (success or lifted objects), mean
+    bodies simulated, and the CPU seconds of all checks each way; and the differing checks."""
+    from dataclasses import replace
+
+    from mog_drake.scenario import Scenario
+    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.systems.pick import make_planner
+
+    planner = make_planner(Scenario())
+    base = planner.verifier.config
+    ref = _Timed(DrakeVerifier(replace(base, bodies="group"), planner.verifier.gripper))
+    fast = _Timed(DrakeVerifier(replace(base, bodies="grasp"), planner.verifier.gripper))
+    log = _replay_checks(planner, ref, fast, tables, seed, progress)
+    rows = []
+    for kind in ("multi", "lone", "on_side"):
+        got = [r for r in log if r["kind"] == kind]
+        if got:
+            rows.append(
+                {
+                    "kind": kind,
+                    "checks": len(got),
+                    "successes": sum(r["a"].success for r in got),
+                    "differ": sum(not _same(r["a"], r["b"]) for r in got),
+                    "bodies_group": float(np.mean([r["bodies"][0] for r in got])),
+                    "bodies_grasp": float(np.mean([r["bodies"][1] for r in got])),
+                    "cpu_group_s": float(np.mean([r["a"].cpu for r in got])),
+                    "cpu_grasp_s": float(np.mean([r["b"].cpu for r in got])),
+                }
+            )
+    differ = [
+        {
+            "kind": r["kind"],
+            "scene": r["scene"].to_dict(),
+            "group": r["group"],
+            "grasp": [float(v) for v in r["grasp"]],
+            "group_bodies": r["a"].to_dict(),
+            "grasp_bodies": r["b"].to_dict(),
+        }
+        for r in log
+        if not _same(r["a"], r["b"])
+    ]
+    return {
+        "tables": tables,
+        "seed": seed,
+        "rows": rows,
+        "cpu_group_s": sum(r["a"].cpu for r in log),
+        "cpu_grasp_s": sum(r["b"].cpu for r in log),
+        "differing": differ,
+    }
+
+
+class _Timed:
+    """A physics check whose results carry the CPU seconds of this thread it took (``cpu``):
+    on a shared machine wall time mostly measures the neighbours."""
+
+    def __init__(self, verifier):
+        self.verifier = verifier
+
+    @property
+    def _sim(self):
+        return self.verifier._sim
+
+    def check(self, scene, group, grasp):
+        t = time.thread_time()
+        r = self.verifier.check(scene, group, grasp)
+        r.cpu = time.thread_time() - t
+        return r
+
+
+def bodies_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
+
+    text = format_table(doc["rows"]) + (
+        f"\nall checks: {doc['cpu_group_s']:.1f} s of CPU simulating the group's reach, "
+        f"{doc['cpu_grasp_s']:.1f} s simulating what each grasp can touch; {len(doc['differing'])} verdicts differ"
+    )
+    return text + "".join(
+        f"\n  differs: {d['kind']} group {d['group']} grasp {[round(x, 5) for x in d['grasp']]}: "
+        f"group's reach {d['group_bodies']['success']} lifted {d['group_bodies']['lifted']}, "
+        f"grasp's {d['grasp_bodies']['success']} lifted {d['grasp_bodies']['lifted']}"
+        for d in doc["differing"]
+    )
 
 
 def hold_text(doc: dict) -> str:
