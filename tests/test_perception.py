@@ -88,3 +88,17 @@ def test_components_bridge_a_missing_row_but_not_a_gap():
     for k, m in enumerate(members, start=1):
         assert (labels.ravel()[m] == k).all() and np.all(np.diff(m) > 0)
     assert (labels[~img] == 0).all()
+
+
+def test_shapes_whose_lone_fits_may_share_a_search():
+    """Lone instances of shapes that cannot take each other's pixels are fitted in one batch:
+    another colour, or one colour with tops more than two height bands apart (a thin bar and
+    its 7 mm high side). A small cube (30 mm) and the same cube on its side (25 mm) can."""
+    from mog_drake.perception import Perceiver
+
+    p = Perceiver(table=(-0.3, 0.3, -0.4, 0.4))
+    k = {n: i for i, n in enumerate(p.names)}
+    assert not p._interact(k["thin_bar"], k["thick_bar"])
+    assert not p._interact(k["thin_bar"], k["thin_bar:on_side"])
+    assert p._interact(k["small_yellow_cube"], k["small_yellow_cube:on_side"])
+    assert p._interact(k["thin_bar"], k["thin_bar"])

@@ -355,10 +355,10 @@ class Perceiver:
                 if visible >= cfg.min_fraction * area:
                     n_est = max(int(round(visible / area)), 1)
                     (lone if n_est == 1 else several).append((label, idx, n_est))
-            found_windows = (
+            lone_windows = (
                 self._window(k, im, labels, label, im.xy[idx].mean(axis=0)) for label, idx, _ in lone
             )
-            wins.extend(w for w in found_windows if w is not None)
+            wins.extend(w for w in lone_windows if w is not None)
             pending.append((k, labels, colour, several))
         flush()
         found = [o for k in order for o in found_by[k]]

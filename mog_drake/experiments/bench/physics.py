@@ -218,6 +218,23 @@ def _same(a, b) -> bool:
     return a.success == b.success and (not a.complete or sorted(a.lifted) == sorted(b.lifted))
 
 
+def _differing(log: list[dict], a: str, b: str) -> list[dict]:
+    """The checks of ``log`` whose two verdicts differ, to replay: each with its scene, group,
+    grasp and both results (named ``a`` and ``b``)."""
+    return [
+        {
+            "kind": r["kind"],
+            "scene": r["scene"].to_dict(),
+            "group": r["group"],
+            "grasp": [float(v) for v in r["grasp"]],
+            a: r["a"].to_dict(),
+            b: r["b"].to_dict(),
+        }
+        for r in log
+        if not _same(r["a"], r["b"])
+    ]
+
+
 def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=None) -> dict:
     """The picking's physics check with and without ending the hold once every object has
     settled (``VerifierConfig.settle_window``), on the grasps the picking planner checks
@@ -244,18 +261,7 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
                 "sim_settled_s": float(np.mean([r["b"].sim_time for r in got])),
             }
         )
-    differ = [
-        {
-            "kind": r["kind"],
-            "scene": r["scene"].to_dict(),
-            "group": r["group"],
-            "grasp": [float(v) for v in r["grasp"]],
-            "full_hold": r["a"].to_dict(),
-            "settled": r["b"].to_dict(),
-        }
-        for r in log
-        if not same(r["a"], r["b"])
-    ]
+    differ = _differing(log, "full_hold", "settled")
     wall = sum(r["a"].wall_time for r in log), sum(r["b"].wall_time for r in log)
     return {
         "tables": tables,
@@ -302,18 +308,7 @@ def bench_bodies(tables: int = 5, seed: int = 0, progress=None) -> dict:
                     "cpu_grasp_s": float(np.mean([r["b"].cpu for r in got])),
                 }
             )
-    differ = [
-        {
-            "kind": r["kind"],
-            "scene": r["scene"].to_dict(),
-            "group": r["group"],
-            "grasp": [float(v) for v in r["grasp"]],
-            "group_bodies": r["a"].to_dict(),
-            "grasp_bodies": r["b"].to_dict(),
-        }
-        for r in log
-        if not _same(r["a"], r["b"])
-    ]
+    differ = _differing(log, "group_bodies", "grasp_bodies")
     return {
         "tables": tables,
         "seed": seed,
