@@ -321,3 +321,21 @@ def test_grouping_ceiling_counts_the_grasps_alg1_needs_if_every_group_lifts_whol
     row4 = [("thin_bar", 0.02 * k, 0.0, 1.5708) for k in range(4)]
     assert grouping_ceiling(make_scene([*row4, alone]), 0.035, 0.075) == pytest.approx(5 / 3)
     assert grouping_ceiling(make_scene([*row4, alone]), 0.035, 0.075, "conditions") == pytest.approx(5 / 2)
+
+
+def test_the_arms_wait_is_summarised_as_its_median_share_of_robot_time():
+    """wait_share_pct: per mode, the median over tables of (waits for perception and
+    planning) / robot time, in percent; tables without waits (older sweeps) are left out."""
+    records = []
+    for scene, (wait_p, wait_q, robot) in enumerate(
+        [(0.5, 9.5, 100.0), (0.0, 30.0, 150.0), (1.0, 1.0, 200.0)]
+    ):
+        r = _picking_record(scene, "mog", 1.0, 600.0)
+        r["summary"].update(wait_perception_s=wait_p, wait_planning_s=wait_q, robot_time_s=robot)
+        records.append(r)
+    old = _picking_record(3, "mog", 1.0, 500.0)
+    for key in ("wait_perception_s", "wait_planning_s"):
+        old["summary"].pop(key, None)
+    row = picking_eval.summarize(records + [old], ["mog"])["rows"][0]
+    assert row["scenes"] == 4
+    assert row["wait_share_pct"] == pytest.approx(10.0)  # shares 10, 20 and 1 %

@@ -4,6 +4,7 @@ cluttered tables, with 95 % confidence intervals."""
 from __future__ import annotations
 
 import hashlib
+import statistics
 from collections import Counter
 
 from mog_drake.experiments.stats import mean_ci
@@ -29,6 +30,7 @@ COLUMNS = [
     "cycle_time_s",
     "wait_perception_s",
     "wait_planning_s",
+    "wait_share_pct",
     "pushes",
     "paper_success_rate",
     "paper_pph",
@@ -141,6 +143,13 @@ def summarize(results: list[dict], modes) -> dict:
             # perception out and counted planning as idle time).
             mean, ci = mean_ci([r[key] * scale for r in rs if key in r and r[key] == r[key]])
             row[key], row[key + "_ci"] = mean, ci
+        # The arm's wait for compute as a share of its robot time: the median over tables.
+        shares = [
+            100.0 * (r["wait_perception_s"] + r["wait_planning_s"]) / r["robot_time_s"]
+            for r in rs
+            if r.get("robot_time_s") and "wait_planning_s" in r and "wait_perception_s" in r
+        ]
+        row["wait_share_pct"] = float(statistics.median(shares)) if shares else float("nan")
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))
         row["paper_pph"] = paper.get("pph", float("nan"))
