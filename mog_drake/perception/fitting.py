@@ -201,11 +201,6 @@ class PolygonScore:
         self._counts = counts[None].copy()  # (windows, V)
         self._tables: dict = {}
 
-    @property
-    def _samples(self) -> int:
-        """The most samples of any edge."""
-        return int(self._counts.max())
-
     @classmethod
     def stack(cls, scores: list["PolygonScore"]) -> "PolygonScore":
         """One score over the windows of ``scores``. Faces with fewer vertices than the most
