@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from mog_drake.errors import MogError
+from mog_drake.experiments.bench import BENCHES
 from mog_drake.planning.config import MODES
 from mog_drake.tables import format_table
 
@@ -680,16 +681,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("bench", help="benchmarks that print a table")
     sp.add_argument(
         "what",
-        choices=[
-            "geometry",
-            "verifier",
-            "agreement",
-            "perception",
-            "station",
-            "replanning",
-            "hold",
-            "bodies",
-        ],
+        choices=BENCHES,
     )
     sp.add_argument(
         "--scenes",
