@@ -36,6 +36,10 @@ from mog_drake.systems.jobs import LATENCY_MODES, LatencyConfig
 from mog_drake.systems.motion import MotionConfig
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
+# m kept between the planner's open jaws (their modelled plates) and the bin's outer walls:
+# a real 2F-85's fingers reach about 5 mm beyond the plates at full opening, and a grasp is
+# placed to about 5 mm.
+KEEP_OUT_MARGIN = 0.01
 
 
 # --- the objects on the table: one of three sources, chosen by tag -------------------------
@@ -213,6 +217,13 @@ class Scenario:
         """Regions where perception looks for no object: the bin and 5 mm around it (the
         camera sees the outside of its walls)."""
         return [self.bin.footprint(0.005)]
+
+    def keep_out(self) -> list[tuple[float, float, float, float]]:
+        """Regions the planner's jaws and pushes stay out of: the bin's walls and KEEP_OUT_MARGIN
+        around them. The bin is taller than the jaws' reach down to the table, and the physics
+        check does not model it: a grasp whose open jaws would land on its wall passes that
+        check and then fails on the robot, again and again."""
+        return [self.bin.footprint(KEEP_OUT_MARGIN)]
 
     def perception_reach(self) -> tuple[float, float, float]:
         """(x, y, radius): the disc about the robot's base within which the arm reaches."""

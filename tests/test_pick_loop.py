@@ -250,3 +250,42 @@ def test_the_change_check_sees_moved_and_uncovered_objects_not_a_millimetre(tmp_
     armed[rows, cols] = 0.3  # something 0.5 m above the table hid it
     assert perceiver.changed_pixels(armed, d0, *args) > 100
     assert perceiver.changed_pixels(armed, d0, *args, still=True) == 0  # not a motion: unknown
+
+
+def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_path, monkeypatch):
+    """A grasp that the physics check trusts and the world keeps failing is not tried until
+    the time limit. Here every planned grasp lands 6 cm beside its object (it closes on air),
+    as a wrongly perceived pose would: the planner tallies the object's failures across
+    images, whose ids differ, and after MAX_MISSES of them it plans that object no more. With
+    nothing else on the table, the run ends "gave_up" with the object left in view."""
+    import mog_drake.systems.planner as planner_module
+    from mog_drake.planning.picking import MAX_MISSES
+
+    real = planner_module.next_pick
+    excluded = []
+
+    def beside(*a, **kw):
+        excluded.append(list(kw.get("exclude", ())))
+        d = real(*a, **kw)
+        if d.grasp is not None:
+            d.grasp = d.grasp + np.array([0.0, 0.06, 0.0])
+        return d
+
+    monkeypatch.setattr(planner_module, "next_pick", beside)
+    sc, d, parts, sim = _diagram(tmp_path, objects=[("large_hexagon", 0.05, -0.10, 0.3)])
+    ctx = sim.get_mutable_context()
+    c = parts["controller"]
+    cctx = c.GetMyContextFromRoot(ctx)
+    try:
+        while ctx.get_time() < 120.0 and c.state(cctx).mode != "done":
+            sim.AdvanceTo(ctx.get_time() + 0.25)
+    finally:
+        _close(parts)
+    s = c.state(cctx)
+    assert s.finished == "gave_up"
+    assert len(s.attempts) == MAX_MISSES  # not one more
+    assert excluded[:MAX_MISSES] == [[]] * MAX_MISSES and excluded[-1] == [0]
+    # The object was never taken: it is still on the table, where it was.
+    plant = parts["handles"].plant
+    p = plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(ctx), parts["handles"].bodies[0]).translation()
+    assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.03 and p[2] < 0.01

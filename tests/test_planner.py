@@ -490,3 +490,91 @@ def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_
     d3 = next_pick(moved, planner, spec, failures=memory)
     assert len(v.asked) == 1 and d3.remembered == 0 and d3.status == "grasp"
     assert first.objects[grasped] != o
+
+
+def test_clear_of_boxes_agrees_with_shapely_on_the_open_gripper_footprint():
+    """The separating-axis test against the exact overlap of the gripper's footprint (both
+    jaws and S between them) with a box, on random grasps around it, touching excepted."""
+    from shapely.geometry import Polygon, box
+
+    from mog_drake.geometry import GripperGeometry
+    from mog_drake.geometry.gripper import clear_of_boxes
+
+    g = GripperGeometry()
+    r = np.random.default_rng(7)
+    grasps = np.column_stack(
+        [r.uniform(-0.15, 0.15, 400), r.uniform(-0.15, 0.15, 400), r.uniform(0, np.pi, 400)]
+    )
+    b = (-0.04, 0.06, -0.02, 0.03)
+    clear = clear_of_boxes(grasps, [b], g)
+    for u, ok in zip(grasps, clear, strict=True):
+        rect = g.rectangles(u)
+        foot = Polygon(rect["left_jaw"]).union(Polygon(rect["S"])).union(Polygon(rect["right_jaw"]))
+        assert ok == (foot.intersection(box(b[0], b[2], b[1], b[3])).area < 1e-12)
+    assert 50 < clear.sum() < 350  # both verdicts occur
+
+
+def test_the_planners_jaws_stay_out_of_the_bin():
+    """A thin bar lying on its side against the bin's wall: the grasp the planner ranks first
+    closes across its 30 mm width, with one jaw on the wall. With the scenario's keep-out
+    (make_planner) no candidate's jaws enter the bin, and the bar is held end to end or not
+    at all; an object in the open is planned as before."""
+    from mog_drake.geometry.gripper import clear_of_boxes
+    from mog_drake.scenario import Scenario
+
+    sc = Scenario()
+    (box,) = sc.keep_out()
+    bar = make_scene([("thin_bar:on_side", -0.215, box[2] - 0.012, 0.0)], table=(-0.3, 0.3, -0.4, 0.4))
+    cfg = sc.planner.grasp_planner()
+    free, kept = FakeVerifier(), FakeVerifier()
+    GraspPlanner(free, cfg).plan(bar, (0,))
+    GraspPlanner(kept, cfg, keep_out=sc.keep_out()).plan(bar, (0,))
+    assert not clear_of_boxes(free.asked[0], [box])[0]  # the first choice: a jaw on the wall
+    assert kept.asked and clear_of_boxes(np.array(kept.asked), [box]).all()
+    away = make_scene([("thin_bar:on_side", -0.215, 0.0, 0.0)], table=(-0.3, 0.3, -0.4, 0.4))
+    a, b = FakeVerifier(), FakeVerifier()
+    GraspPlanner(a, cfg).plan(away, (0,))
+    GraspPlanner(b, cfg, keep_out=sc.keep_out()).plan(away, (0,))
+    assert np.array_equal(np.array(a.asked), np.array(b.asked))
+    with pytest.raises(MogError, match="keep-out"):
+        GraspPlanner(FakeVerifier(), keep_out=[(0.1, 0.0, 0.0, 0.1)])
+
+
+def test_failed_grasps_are_tallied_per_object_across_images():
+    """tally_misses: a grasp that took none of its targets counts one miss for each; the count
+    follows its object to where the failed grasp nudged it (ids differ between images), is
+    not given to a neighbour of another shape, and is dropped once the object is gone. At
+    MAX_MISSES the object's id in the new image is returned."""
+    from mog_drake.planning.picking import MAX_MISSES, MISS_RADIUS, tally_misses
+
+    hexagon = ("large_hexagon", 0.05, -0.10, 0.0)
+    quad = ("blue_quad", 0.07, -0.10, 0.0)  # 2 cm away: within MISS_RADIUS, another shape
+    misses, out = tally_misses((), (("large_hexagon", 0.05, -0.10),), make_scene([quad, hexagon]))
+    assert misses == (("large_hexagon", 0.05, -0.10, 1),) and out == []
+    # Nudged 1 cm and listed first now: the same object, its count carried.
+    nudged = make_scene([("large_hexagon", 0.06, -0.10, 0.4), quad])
+    for _ in range(2, MAX_MISSES + 1):
+        misses, out = tally_misses(misses, (("large_hexagon", *misses[0][1:3]),), nudged)
+    assert misses == (("large_hexagon", 0.06, -0.10, MAX_MISSES),) and out == [0]
+    # A grasp of the quad that took it: nothing new for the hexagon, its count stands.
+    assert tally_misses(misses, (("blue_quad", 0.07, -0.10),), make_scene([hexagon]))[0][0][3] == MAX_MISSES
+    # A grasp of two that took one of them: no miss for the other.
+    both = (("large_hexagon", 0.05, -0.10), ("blue_quad", 0.07, -0.10))
+    assert tally_misses((), both, make_scene([hexagon])) == ((), [])
+    # Moved farther than MISS_RADIUS (or taken): forgotten.
+    far = make_scene([("large_hexagon", 0.05 + 1.5 * MISS_RADIUS, -0.10, 0.0)])
+    assert tally_misses(misses, (), far) == ((), [])
+
+
+def test_objects_given_up_on_are_not_planned_and_alone_they_end_the_run():
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene([("large_hexagon", 0.05, -0.10, 0.0), ("blue_quad", -0.10, 0.10, 0.0)])
+    lifts = FakeVerifier()
+    lifts.check = lambda s, group, grasp: GraspResult(True, lifted=list(group))
+    for mode in ("mog", "sog"):
+        spec = PlannerSpec(mode=mode)
+        d = next_pick(scene, GraspPlanner(lifts), spec, np.random.default_rng(0), exclude=[0])
+        assert d.status == "grasp" and d.group == (1,)
+        d = next_pick(scene, GraspPlanner(lifts), spec, np.random.default_rng(0), exclude=[0, 1])
+        assert d.status == "gave_up" and d.grasp is None

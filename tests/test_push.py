@@ -72,6 +72,20 @@ def test_no_push_through_a_third_object_or_beyond_max_push():
     assert all(p.toward != 1 for p in pushes)
 
 
+def test_no_push_takes_the_object_or_the_pusher_into_a_keep_out_box():
+    """The bin's walls (a keep-out box): a push whose object path or pusher sweep would enter
+    it is refused, and the same push is made when the box lies clear of both."""
+    polys = make_scene(BARS).polygons()
+    g = GripperGeometry()
+    p = push_between(polys, 0, 1, g)
+    assert p is not None
+    # The pusher starts behind bar 0 (y < p.start[1] + a plate): a box just behind it.
+    behind = (-0.05, 0.05, p.start[1] - 0.03, p.start[1] - 0.005)
+    assert push_between(polys, 0, 1, g, [behind]) is None
+    beside = (0.02, 0.06, -0.05, 0.05)  # 2 cm to the side of the bars' 12 mm width
+    assert push_between(polys, 0, 1, g, [beside]) == p
+
+
 def test_adjacent_groups_join_objects_that_meet_end_to_end():
     """Two thin bars end to end (centres 53 mm apart) are no radius group; adjacent, they are."""
     scene = make_scene([("thin_bar", -0.0265, 0.0, 0.0), ("thin_bar", 0.0265, 0.0, 0.0), BARS[0]])

@@ -82,3 +82,31 @@ def to_grasp_frame(points: np.ndarray, grasps: np.ndarray) -> np.ndarray:
 #: The inner opening of the open jaws (m): w_g of the default gripper, 75 mm. The controller
 #: opens to it and the stations start at it.
 OPEN_WIDTH = round(GripperGeometry().w_g, 9)
+
+
+def clear_of_boxes(grasps, boxes, gripper: GripperGeometry | None = None) -> np.ndarray:
+    """(B,) True where the open gripper's footprint (both jaws and the region S between them,
+    the rectangle they sweep as they close) overlaps none of ``boxes``, axis-aligned
+    (xmin, xmax, ymin, ymax) regions of the table that the jaws must not enter (the bin's
+    walls: taller than anything the jaws reach down to). Touching is allowed. A separating
+    axis test: the rectangle and a box are apart when their projections are apart on the
+    table's x or y axis or on one of the rectangle's two axes."""
+    gripper = gripper or GripperGeometry()
+    g = np.atleast_2d(np.asarray(grasps, dtype=float))
+    clear = np.ones(len(g), dtype=bool)
+    a = gripper.opening / 2 + gripper.plate_thickness / 2  # half length along the closing axis
+    b = gripper.plate_width / 2
+    c, s = np.abs(np.cos(g[:, 2])), np.abs(np.sin(g[:, 2]))
+    for x0, x1, y0, y1 in boxes:
+        cx, cy, ex, ey = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
+        dx, dy = cx - g[:, 0], cy - g[:, 1]
+        along = np.abs(dx * np.cos(g[:, 2]) + dy * np.sin(g[:, 2]))
+        across = np.abs(-dx * np.sin(g[:, 2]) + dy * np.cos(g[:, 2]))
+        apart = (
+            (np.abs(dx) >= ex + a * c + b * s)
+            | (np.abs(dy) >= ey + a * s + b * c)
+            | (along >= a + ex * c + ey * s)
+            | (across >= b + ex * s + ey * c)
+        )
+        clear &= apart
+    return clear

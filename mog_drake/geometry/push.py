@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mog_drake.geometry.gripper import GripperGeometry
+from mog_drake.geometry.polygon import convex_hull_ccw
 
 PUSH_CLEARANCE = 0.008  # m between the pusher's face and the object before the push
 PUSH_GAP = 0.006  # m left between the pushed object and the one it joins
@@ -105,10 +106,11 @@ def _support(P: np.ndarray, u: np.ndarray) -> float:
     return float(np.max(P @ u))
 
 
-def push_between(polys, i: int, j: int, gripper: GripperGeometry) -> Push | None:
+def push_between(polys, i: int, j: int, gripper: GripperGeometry, keep_out=()) -> Push | None:
     """The push of object ``i`` towards object ``j`` along the line of their centres, or None
-    when it is too short or too long, when the object would meet another first, or when the
-    pusher would start on, or sweep into, any other object."""
+    when it is too short or too long, when the object would meet another first, when the
+    pusher would start on, or sweep into, any other object, or when the pusher or the object
+    would enter one of the ``keep_out`` boxes (xmin, xmax, ymin, ymax: the bin's walls)."""
     ci, cj = polys.centers[i], polys.centers[j]
     d = cj - ci
     if np.linalg.norm(d) < 1e-9:
@@ -134,6 +136,13 @@ def push_between(polys, i: int, j: int, gripper: GripperGeometry) -> Push | None
         if k != i and contact_distance(grown, polys.polygon(k), u) < sweep:
             return None
     end = start + u * sweep
+    if keep_out:
+        swept = (
+            convex_hull_ccw(np.concatenate([Pi, Pi + u * travel])),
+            convex_hull_ccw(np.concatenate([grown, grown + u * sweep])),
+        )
+        if any(overlaps_box(P, box) for P in swept for box in keep_out):
+            return None
     return Push(
         (float(start[0]), float(start[1])),
         (float(end[0]), float(end[1])),
@@ -142,6 +151,21 @@ def push_between(polys, i: int, j: int, gripper: GripperGeometry) -> Push | None
         int(j),
         float(travel),
     )
+
+
+def overlaps_box(P: np.ndarray, box) -> bool:
+    """Whether convex polygon ``P`` (K, 2), CCW, overlaps the axis-aligned box (xmin, xmax,
+    ymin, ymax) by more than touching: no separating axis among the table's x and y and
+    ``P``'s edge normals."""
+    x0, x1, y0, y1 = box
+    if P[:, 0].max() <= x0 or P[:, 0].min() >= x1 or P[:, 1].max() <= y0 or P[:, 1].min() >= y1:
+        return False
+    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    e = P[np.arange(1, len(P) + 1) % len(P)] - P
+    n = np.stack([e[:, 1], -e[:, 0]], axis=1)  # outward normals of a CCW polygon
+    # Apart along edge k's normal when every corner lies beyond that edge.
+    beyond = ((corners[None, :, :] - P[:, None, :]) * n[:, None, :]).sum(axis=2) >= 0
+    return not beyond.all(axis=1).any()
 
 
 def near_path(polys, start, u, length: float, margin: float) -> np.ndarray:
@@ -161,7 +185,7 @@ def _grow(square: np.ndarray, margin: float) -> np.ndarray:
 
 
 def push_candidates(
-    polys, movable, gripper: GripperGeometry | None = None, reach: float = 0.12
+    polys, movable, gripper: GripperGeometry | None = None, reach: float = 0.12, keep_out=()
 ) -> list[Push]:
     """Pushes of each object of ``movable`` towards every other object whose centre lies
     within ``reach`` (m) of its own (see `push_between`), shortest first."""
@@ -170,7 +194,7 @@ def push_candidates(
     for i in movable:
         dist = np.linalg.norm(polys.centers - polys.centers[i], axis=1)
         for j in np.flatnonzero((dist > 0) & (dist <= reach)):
-            p = push_between(polys, int(i), int(j), gripper)
+            p = push_between(polys, int(i), int(j), gripper, keep_out)
             if p is not None:
                 out.append(p)
     return sorted(out, key=lambda p: p.distance)

@@ -39,6 +39,12 @@ MEMORY_SIZE = 64
 # stopped (an extension; see next_pick's ``last_resort``).
 LAST_RESORT_CHECKS = 12
 LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
+# An object the robot grasped this many times without taking it (it was still on the table
+# within MISS_RADIUS of where it was, and the grasp took none of its targets) is given up
+# on: a grasp that the physics check trusts and the world keeps failing (a pose perceived
+# wrong, something the check does not model) would otherwise be tried until the time limit.
+MAX_MISSES = 3
+MISS_RADIUS = 0.03  # m: a failed grasp nudges its object; a taken one leaves nothing here
 # push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
 # between them, and the pushed object may turn a little as it stops).
 ADJACENT_GAP = PUSH_GAP + 0.004  # m
@@ -117,8 +123,9 @@ def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=(
 @dataclass
 class PickDecision:
     """status: "grasp" (grasp and group set), "push" (push set: push-mog), "table_clear",
-    "no_grasp", or "unrecognised" (no library object is left but perception sees something
-    it cannot recognise)."""
+    "no_grasp", "unrecognised" (no library object is left but perception sees something
+    it cannot recognise), or "gave_up" (every object left was grasped MAX_MISSES times in
+    vain: see `tally_misses`)."""
 
     status: str
     grasp: np.ndarray | None = None
@@ -174,6 +181,7 @@ def next_pick(
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     adjacent: float = 0.0,
+    exclude=(),
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -213,7 +221,10 @@ def next_pick(
     worth more (see `_consider_pushes`; at most ``pushes_left`` more). Its grasps are
     planned for Alg. 1's groups and for the groups of objects that meet within
     ``ADJACENT_GAP`` (``adjacent``, `adjacent_groups`): a push leaves two bars end to end,
-    farther apart than the group radius."""
+    farther apart than the group radius.
+
+    exclude: objects given up on (`tally_misses`): no group holding one is planned; when they
+    are all that is left, the status is "gave_up"."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
@@ -226,6 +237,7 @@ def next_pick(
             failures,
             grasp_unrecognised,
             adjacent=ADJACENT_GAP,
+            exclude=exclude,
         )
         if (
             pushes_left > 0
@@ -258,6 +270,11 @@ def next_pick(
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
         groups = [(int(i),) for i in rng.permutation(len(scene))]
+    if len(exclude):
+        excluded = {int(i) for i in exclude}
+        groups = [g for g in groups if not excluded.intersection(g)]
+        if not groups:
+            return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
     partial_lifts = spec.partial_lifts and mode == "mog"
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
@@ -300,6 +317,48 @@ def next_pick(
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]]:
+    """Failed grasps per object, across images whose object ids differ.
+
+    ``misses``: ((shape, x, y, count), ...) as of the last image; ``targets``: ((shape, x, y),
+    ...), the objects the grasp executed since meant to take; ``scene``: the new image. An
+    object is found again as the nearest one of its shape within MISS_RADIUS of where it
+    was. If every target is found again, the grasp took none of them: each one's count goes
+    up by one. Entries not found again are dropped (taken, or moved far).
+
+    Returns the new misses (at the objects' new positions) and the ids, in ``scene``, of the
+    objects grasped MAX_MISSES times in vain."""
+    objects = [(o.shape, float(o.x), float(o.y)) for o in scene.objects]
+
+    def found(entries) -> list[int | None]:
+        """Each (shape, x, y, ...) entry's object in ``scene``, or None; nearest first, an
+        object taken once."""
+        pairs = sorted(
+            (float(np.hypot(x - e[1], y - e[2])), k, i)
+            for k, e in enumerate(entries)
+            for i, (shape, x, y) in enumerate(objects)
+            if shape == e[0] and np.hypot(x - e[1], y - e[2]) <= MISS_RADIUS
+        )
+        out: list[int | None] = [None] * len(entries)
+        used = set()
+        for _, k, i in pairs:
+            if out[k] is None and i not in used:
+                out[k] = i
+                used.add(i)
+        return out
+
+    counts = {i: e[3] for e, i in zip(misses, found(misses), strict=True) if i is not None}
+    hits = found(targets)
+    if targets and all(i is not None for i in hits):
+        for i in hits:
+            counts[i] = counts.get(i, 0) + 1
+    new = tuple(
+        (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), n)
+        for i, n in sorted(counts.items())
+    )
+    return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
 
 
 def lookahead(
@@ -361,7 +420,7 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
     groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
     w_g = planner.gripper.w_g
     options = []
-    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.push_reach):
+    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.push_reach, planner.keep_out):
         joined = next((g for g in groups if p.toward in g and p.target not in g), (p.toward,))
         group = tuple(sorted((p.target, *joined)))
         if polys.d_fmin[list(group)].sum() > w_g:

@@ -27,6 +27,7 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
 from mog_drake.planning.protocol import GraspResult, Verifier
 
@@ -148,11 +149,23 @@ class GraspPlanner:
     """Alg. 2 and its baselines over any `Verifier` (the Drake one, or a test double)."""
 
     def __init__(
-        self, verifier: Verifier, config: PlannerConfig | None = None, gripper: GripperGeometry | None = None
+        self,
+        verifier: Verifier,
+        config: PlannerConfig | None = None,
+        gripper: GripperGeometry | None = None,
+        keep_out=(),
     ):
         self.verifier = verifier
         self.config = config or PlannerConfig()
         self.gripper = gripper or GripperGeometry()
+        # Regions of the table (xmin, xmax, ymin, ymax) the open jaws must not enter: the
+        # cell's fixtures (the bin), which the physics check does not model.
+        self.keep_out = tuple(tuple(float(v) for v in box) for box in keep_out)
+        for box in self.keep_out:
+            if len(box) != 4 or not (box[0] < box[1] and box[2] < box[3]):
+                raise MogError(
+                    f"a keep-out region must be (xmin, xmax, ymin, ymax) with min < max, got {box}"
+                )
 
     def plan(
         self,
@@ -186,6 +199,8 @@ class GraspPlanner:
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
         )
+        if self.keep_out and len(cands):
+            cands = cands[clear_of_boxes(cands, self.keep_out, self.gripper)]
         margin = None
         if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
             final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])

@@ -25,7 +25,8 @@ from mog_drake.systems.view import ArmView
 
 def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     """The grasp planner of ``scenario.planner``, its physics check on the scenario's contact
-    and gripper settings (``verifier`` replaces that check, e.g. in tests)."""
+    and gripper settings (``verifier`` replaces that check, e.g. in tests), its jaws kept
+    out of the bin (`Scenario.keep_out`)."""
     from mog_drake.geometry import GripperGeometry
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
 
@@ -45,7 +46,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     vcfg.cpu_budget = default.cpu_budget * max(
         1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
     )
-    return GraspPlanner(verifier or DrakeVerifier(vcfg), spec.grasp_planner())
+    return GraspPlanner(verifier or DrakeVerifier(vcfg), spec.grasp_planner(), keep_out=scenario.keep_out())
 
 
 def arm_view(scenario: Scenario, intrinsics) -> ArmView:
@@ -429,4 +430,11 @@ def run_text(run: PickRun, summary: dict | None = None) -> str:
         text += f"\nnot in the bin: object {i} ({shape}) {where} at {p}"
     for k in run.skipped:
         text += f"\nskipped at t={k['t']:.1f} s, unreachable: {k['reason']}"
+    if run.finished == "gave_up":
+        from mog_drake.planning.picking import MAX_MISSES
+
+        text += (
+            f"\ngave up: every object left was grasped {MAX_MISSES} times without being taken;"
+            " it needs a person (or a look at why the grasps fail)"
+        )
     return text

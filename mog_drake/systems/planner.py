@@ -12,7 +12,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, lookahead, next_pick
+from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -32,6 +32,10 @@ class Decision(_Immutable):
     cpu_time: float = 0.0  # the planning job's CPU time (s)
     previous: Decision | None = None  # the state this one was planned from
     pushes: int = 0  # push-mog: pushes decided so far, this one included
+    # (shape, x, y) of the objects this decision's grasp means to take, and the failed grasps
+    # per object as of its image ((shape, x, y, count): see tally_misses).
+    targets: tuple = ()
+    misses: tuple = ()
 
 
 class PlannerSystem(LeafSystem):
@@ -98,7 +102,7 @@ class PlannerSystem(LeafSystem):
         if job is not None and job.visible(t, self._latency, self._block):
             job_counter = job.counter
             d, rng = job.result()
-            base, n_objects, scene = job.info
+            base, n_objects, scene, misses = job.info
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
             if d.status == "grasp":
                 blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
@@ -118,6 +122,8 @@ class PlannerSystem(LeafSystem):
                 job.cpu_time(),
                 dataclasses.replace(base, previous=None),  # one step back is all a retake needs
                 base.pushes + (d.status == "push"),
+                _targets(d, scene),
+                misses,
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
@@ -154,6 +160,8 @@ class PlannerSystem(LeafSystem):
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory = ahead.result()
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
+        # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
+        misses, given_up = tally_misses(base.misses, base.targets, p.scene)
         job = self._worker.submit(
             self._plan,
             p.scene,
@@ -162,13 +170,14 @@ class PlannerSystem(LeafSystem):
             memory if self._spec.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.max_pushes - base.pushes,
+            given_up,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene), p.scene),
+            info=(base, len(p.scene), p.scene, misses),
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
         d = next_pick(
             scene,
             self._planner,
@@ -178,8 +187,20 @@ class PlannerSystem(LeafSystem):
             failures=failures,
             grasp_unrecognised=grasp_unrecognised,
             pushes_left=pushes_left,
+            exclude=exclude,
         )
         return d, rng
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
+
+
+def _targets(d: PickDecision, scene) -> tuple:
+    """(shape, x, y) of the objects decision ``d``'s grasp means to take (on the table the
+    push leaves, if its grasp follows a push at once); none for blobs or a push alone."""
+    if d.grasp is None or d.unrecognised or d.status not in ("grasp", "push"):
+        return ()
+    table = d.after if d.status == "push" and d.after is not None else scene
+    return tuple(
+        (table.objects[i].shape, float(table.objects[i].x), float(table.objects[i].y)) for i in d.expected
+    )
