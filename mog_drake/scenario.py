@@ -400,6 +400,8 @@ def check_scenario(sc: Scenario) -> None:
         _in(k.hydroelastic_modulus, f"{key}.hydroelastic_modulus (Pa)", 0, 1e12)
         for mu in ("mu_object", "mu_finger", "mu_table"):
             _in(getattr(k, mu), f"{key}.{mu}", 0, 10, lo_open=False)
+        if k.table_collision not in ("box", "halfspace"):
+            raise MogError(f"{key}.table_collision must be box or halfspace, got {k.table_collision!r}")
     ctl = sc.controller
     _in(ctl.period, "controller.period (s)", 0, 1.0)
     for key in ("close_margin", "open_time", "settle_time"):

@@ -123,6 +123,8 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     one_line_error(*_pick(capsys, typed)[::2], "planner.hold_s", "abc")
     bodies = _write(tmp_path, "bodies.yaml", "planner: {check_bodies: all}\n")
     one_line_error(*_pick(capsys, bodies)[::2], "planner.check_bodies", "all")
+    table = _write(tmp_path, "table.yaml", "contact: {table_collision: plane}\n")
+    one_line_error(*_pick(capsys, table)[::2], "contact.table_collision", "plane")
     # Unreadable: as root every file is readable, so the OS's refusal is modelled.
     locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
     real = Path.read_bytes
@@ -418,6 +420,7 @@ _scenario_keys = st.sampled_from(
         "planner.max_pushes",
         "latency.mode",
         "contact.plant.time_step",
+        "contact.table_collision",
         "controller.period",
         "bin.depth",
         "hardware.max_joint_speed",

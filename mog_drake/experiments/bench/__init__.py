@@ -3,7 +3,7 @@
 `run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
 
 * geometry: the conditions and the candidate filter (`bench.geometry`)
-* verifier, agreement, hold, bodies: the physics check (`bench.physics`)
+* verifier, agreement, hold, bodies, table: the physics check (`bench.physics`)
 * perception, station, replanning: rendered tables, the station's step, replanning (`bench.station`)
 """
 
@@ -13,7 +13,7 @@ import statistics
 
 from mog_drake.tables import format_table
 
-BENCHES = ("geometry", "verifier", "agreement", "perception", "station", "replanning", "hold", "bodies")
+BENCHES = ("geometry", "verifier", "agreement", "perception", "station", "replanning", "hold", "bodies", "table")
 
 
 def run(
@@ -70,13 +70,13 @@ def run(
         doc = bench_hold(scenes, seed, window, progress=bar)
         bar.close()
         return doc, hold_text(doc)
-    elif what == "bodies":
-        from mog_drake.experiments.bench.physics import bench_bodies, bodies_text
+    elif what in ("bodies", "table"):
+        from mog_drake.experiments.bench.physics import bench_pair, pair_text
 
-        bar = Progress(scenes, "bodies", enabled=progress)
-        doc = bench_bodies(scenes, seed, progress=bar)
+        bar = Progress(scenes, what, enabled=progress)
+        doc = bench_pair(what, scenes, seed, progress=bar)
         bar.close()
-        return doc, bodies_text(doc)
+        return doc, pair_text(doc)
     else:
         from mog_drake.errors import MogError
 

@@ -275,23 +275,41 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
     }
 
 
-def bench_bodies(tables: int = 5, seed: int = 0, progress=None) -> dict:
-    """The picking's physics check simulating every object any grasp of the group can reach
-    (``VerifierConfig.bodies`` "group") against only what this grasp can touch ("grasp"), on
-    the grasps the picking planner checks (`_replay_checks`). Returns per kind (multi, lone,
-    on_side) the checks, successes, verdicts that differ (success or lifted objects), mean
-    bodies simulated, and the CPU seconds of all checks each way; and the differing checks."""
+# The verifier settings `bench bodies` and `bench table` compare: (name, field, value) for
+# the reference check (whose verdicts the planner goes on with) and the other one.
+PAIRS = {
+    "bodies": (("group_bodies", "bodies", "group"), ("grasp_bodies", "bodies", "grasp")),
+    "table": (("halfspace", "table_collision", "halfspace"), ("box", "table_collision", "box")),
+}
+
+
+def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict:
+    """The picking's physics check with two settings (``PAIRS[what]``) on the grasps the
+    picking planner checks (`_replay_checks`). "bodies": simulating every object any grasp of
+    the group can reach (``VerifierConfig.bodies`` "group") or only what this grasp can touch
+    ("grasp"). "table": the table's collision geometry a half-space or a box
+    (``ContactConfig.table_collision``). Returns per kind (multi, lone, on_side) the checks,
+    successes each way, verdicts that differ (success or lifted objects), mean bodies
+    simulated, and mean CPU seconds each way; the CPU seconds of all checks; and the
+    differing checks, to replay."""
     from dataclasses import replace
 
     from mog_drake.scenario import Scenario
     from mog_drake.sim.verifier import DrakeVerifier
     from mog_drake.systems.pick import make_planner
 
+    (a, field_a, value_a), (b, field_b, value_b) = PAIRS[what]
     planner = make_planner(Scenario())
     base = planner.verifier.config
-    ref = _Timed(DrakeVerifier(replace(base, bodies="group"), planner.verifier.gripper))
-    fast = _Timed(DrakeVerifier(replace(base, bodies="grasp"), planner.verifier.gripper))
-    log = _replay_checks(planner, ref, fast, tables, seed, progress)
+
+    def config(field, value):
+        if field == "table_collision":
+            return replace(base, contact=replace(base.contact, table_collision=value))
+        return replace(base, **{field: value})
+
+    ref = _Timed(DrakeVerifier(config(field_a, value_a), planner.verifier.gripper))
+    other = _Timed(DrakeVerifier(config(field_b, value_b), planner.verifier.gripper))
+    log = _replay_checks(planner, ref, other, tables, seed, progress)
     rows = []
     for kind in ("multi", "lone", "on_side"):
         got = [r for r in log if r["kind"] == kind]
@@ -300,22 +318,24 @@ def bench_bodies(tables: int = 5, seed: int = 0, progress=None) -> dict:
                 {
                     "kind": kind,
                     "checks": len(got),
-                    "successes": sum(r["a"].success for r in got),
+                    f"successes_{a}": sum(r["a"].success for r in got),
+                    f"successes_{b}": sum(r["b"].success for r in got),
                     "differ": sum(not _same(r["a"], r["b"]) for r in got),
-                    "bodies_group": float(np.mean([r["bodies"][0] for r in got])),
-                    "bodies_grasp": float(np.mean([r["bodies"][1] for r in got])),
-                    "cpu_group_s": float(np.mean([r["a"].cpu for r in got])),
-                    "cpu_grasp_s": float(np.mean([r["b"].cpu for r in got])),
+                    f"bodies_{a}": float(np.mean([r["bodies"][0] for r in got])),
+                    f"bodies_{b}": float(np.mean([r["bodies"][1] for r in got])),
+                    f"cpu_{a}_s": float(np.mean([r["a"].cpu for r in got])),
+                    f"cpu_{b}_s": float(np.mean([r["b"].cpu for r in got])),
                 }
             )
-    differ = _differing(log, "group_bodies", "grasp_bodies")
     return {
+        "bench": what,
+        "names": [a, b],
         "tables": tables,
         "seed": seed,
         "rows": rows,
-        "cpu_group_s": sum(r["a"].cpu for r in log),
-        "cpu_grasp_s": sum(r["b"].cpu for r in log),
-        "differing": differ,
+        f"cpu_{a}_s": sum(r["a"].cpu for r in log),
+        f"cpu_{b}_s": sum(r["b"].cpu for r in log),
+        "differing": _differing(log, a, b),
     }
 
 
@@ -337,17 +357,17 @@ class _Timed:
         return r
 
 
-def bodies_text(doc: dict) -> str:
+def pair_text(doc: dict) -> str:
     from mog_drake.tables import format_table
 
+    a, b = doc["names"]
     text = format_table(doc["rows"]) + (
-        f"\nall checks: {doc['cpu_group_s']:.1f} s of CPU simulating the group's reach, "
-        f"{doc['cpu_grasp_s']:.1f} s simulating what each grasp can touch; {len(doc['differing'])} verdicts differ"
+        f"\nall checks: {doc[f'cpu_{a}_s']:.1f} s of CPU with {a}, {doc[f'cpu_{b}_s']:.1f} s with {b}; "
+        f"{len(doc['differing'])} verdicts differ"
     )
     return text + "".join(
         f"\n  differs: {d['kind']} group {d['group']} grasp {[round(x, 5) for x in d['grasp']]}: "
-        f"group's reach {d['group_bodies']['success']} lifted {d['group_bodies']['lifted']}, "
-        f"grasp's {d['grasp_bodies']['success']} lifted {d['grasp_bodies']['lifted']}"
+        f"{a} {d[a]['success']} lifted {d[a]['lifted']}, {b} {d[b]['success']} lifted {d[b]['lifted']}"
         for d in doc["differing"]
     )
 
