@@ -500,7 +500,14 @@ def cmd_bench(args) -> int:
     from mog_drake.experiments import bench
 
     doc, text = bench.run(
-        args.what, args.scenes, args.seed, args.toppled, args.candidates, args.window, progress=not args.json
+        args.what,
+        args.scenes,
+        args.seed,
+        args.toppled,
+        args.candidates,
+        args.window,
+        progress=not args.json,
+        budget=args.budget or 0.0,
     )
     _emit(args, doc, text)
     return 0
@@ -694,6 +701,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "--window", type=float, default=0.5, help="hold: s every object must stay settled to end the hold"
     )
+    sp.add_argument(
+        "--budget",
+        type=float,
+        default=None,
+        help="replanning: compare the defaults with planner.decision_budget_s = this (s)",
+    )
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)
@@ -746,7 +759,7 @@ def check_args(args) -> None:
     seed = getattr(args, "seed", None)
     if seed is not None and not 0 <= seed < 2**63:
         raise MogError(f"--seed must be a whole number >= 0, got {seed}")
-    for name in ("time_limit", "timeout", "move_timeout", "window", "force"):
+    for name in ("time_limit", "timeout", "move_timeout", "window", "force", "budget"):
         v = getattr(args, name, None)
         if v is not None and not (math.isfinite(v) and v > 0):
             raise MogError(f"--{name.replace('_', '-')} must be a positive number, got {v}")

@@ -416,6 +416,7 @@ _scenario_keys = st.sampled_from(
         "planner.mode",
         "planner.diameter_condition",
         "planner.check_bodies",
+        "planner.decision_budget_s",
         "planner.push_speed",
         "planner.max_pushes",
         "latency.mode",

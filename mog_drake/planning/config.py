@@ -102,6 +102,13 @@ class PlannerSpec:
     # push_then_grasp off), one grasped at once about 1.5 s plus its line.
     push_time_s: float = 1.5
     grasp_time_s: float = 6.5
+    # mog and push-mog (an extension): CPU seconds a decision may search for a larger group
+    # once it holds a verified grasp (a partial lift); past them it takes that grasp (0: no
+    # limit). Beside the arm, planning is free while the arm carries and returns (about 5 s);
+    # every second past that is a second the arm waits, while the larger group it might find
+    # is a long shot (a multi-object check on a full table lifts its whole group in about 1 of
+    # 8 tries).
+    decision_budget_s: float = 0.0
 
     def check(self) -> None:
         """Refuses a setting that would only fail once the robot is running."""
@@ -122,6 +129,8 @@ class PlannerSpec:
             raise MogError(
                 f"planner: settle_window_s must be in [0, hold_s = {self.hold_s:g}] s, got {self.settle_window_s}"
             )
+        if not 0 <= self.decision_budget_s <= 600:
+            raise MogError(f"planner: decision_budget_s must be in [0, 600] s, got {self.decision_budget_s}")
         if self.check_bodies not in ("group", "grasp"):
             raise MogError(f"planner.check_bodies must be one of group, grasp, got {self.check_bodies!r}")
         if not 0 < self.group_radius <= 0.2:

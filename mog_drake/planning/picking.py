@@ -224,7 +224,11 @@ def next_pick(
     farther apart than the group radius.
 
     exclude: objects given up on (`tally_misses`): no group holding one is planned; when they
-    are all that is left, the status is "gave_up"."""
+    are all that is left, the status is "gave_up".
+
+    decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
+    that much CPU time on the decision and holds a verified partial lift, no more groups are
+    planned and no more candidates simulated: the partial lift is taken."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
@@ -249,6 +253,7 @@ def next_pick(
         return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
+    deadline = time.thread_time() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
     if len(scene) == 0:
         # Something the perception could not recognise is not a clear table.
         blobs = unrecognised_scene(scene) if grasp_unrecognised else None
@@ -283,6 +288,8 @@ def next_pick(
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
+        if partial_lifts and best is not None and deadline is not None and time.thread_time() > deadline:
+            break  # past the budget: the verified partial lift in hand
         res = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
@@ -295,8 +302,13 @@ def next_pick(
                             decision.remembered += 1
                         break
         if res is None:
-            res = planner.plan(scene, group, rng=rng, avoid=avoid)
-        if failures is not None and not res.found:
+            if partial_lifts and deadline is not None:
+                res = planner.plan(
+                    scene, group, rng=rng, avoid=avoid, deadline=deadline, fallback=best is not None
+                )
+            else:
+                res = planner.plan(scene, group, rng=rng, avoid=avoid)
+        if failures is not None and not res.found and not res.cut_short:
             seen.append(FailedGroup(tuple(res.group), around, res))
         decision.plans.append(res)
         decision.groups_tried += 1

@@ -105,6 +105,8 @@ class PlanResult:
     # The tested candidate that lifted the most objects without an error, even if not the
     # whole group: (grasp, lifted ids). A verified grasp of those objects.
     best_lift: tuple[np.ndarray, list[int]] | None = None
+    # The caller's deadline ended the plan before its cap: not a verdict on the group.
+    cut_short: bool = False
 
     @property
     def found(self) -> bool:
@@ -175,12 +177,16 @@ class GraspPlanner:
         method: str | None = None,
         avoid=(),
         skip=(),
+        deadline: float | None = None,
+        fallback: bool = False,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
-        goes on where the earlier one stopped."""
+        goes on where the earlier one stopped. ``deadline``: a time of this thread's CPU clock
+        (`time.thread_time`) past which no more candidates are simulated once a verified grasp
+        is in hand: this plan's partial lift, or (``fallback``) the caller's."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -239,10 +245,13 @@ class GraspPlanner:
         if skip:
             order = order[~np.isin(order, skip)]
 
-        grasp, last, tested, best_lift = None, None, [], None
+        grasp, last, tested, best_lift, cut = None, None, [], None, False
         t = time.perf_counter()
         for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
+                break
+            if deadline is not None and (fallback or best_lift is not None) and time.thread_time() > deadline:
+                cut = True
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
@@ -255,7 +264,18 @@ class GraspPlanner:
         times["physics"] = time.perf_counter() - t
         times["total"] = time.perf_counter() - t_start
         return PlanResult(
-            method, group, grasp, len(cands), n_passed, len(tested), times, last, tested, cands, best_lift
+            method,
+            group,
+            grasp,
+            len(cands),
+            n_passed,
+            len(tested),
+            times,
+            last,
+            tested,
+            cands,
+            best_lift,
+            cut,
         )
 
     AXIS_TOL = 0.15  # rad, closing axes this close (modulo pi) count as one axis

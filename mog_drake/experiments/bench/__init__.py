@@ -13,7 +13,17 @@ import statistics
 
 from mog_drake.tables import format_table
 
-BENCHES = ("geometry", "verifier", "agreement", "perception", "station", "replanning", "hold", "bodies", "table")
+BENCHES = (
+    "geometry",
+    "verifier",
+    "agreement",
+    "perception",
+    "station",
+    "replanning",
+    "hold",
+    "bodies",
+    "table",
+)
 
 
 def run(
@@ -24,6 +34,7 @@ def run(
     candidates: int = 60,
     window: float = 0.5,
     progress: bool = True,
+    budget: float = 0.0,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""
     from mog_drake.progress import Progress
@@ -55,7 +66,7 @@ def run(
     elif what == "replanning":
         from mog_drake.experiments.bench.station import bench_replanning
 
-        rows = bench_replanning(scenes, seed, Progress(2 * scenes, "replanning", enabled=progress))
+        rows = bench_replanning(scenes, seed, Progress(2 * scenes, "replanning", enabled=progress), budget)
     elif what == "agreement":
         from mog_drake.experiments.bench.physics import agreement_text, bench_agreement
 
