@@ -583,7 +583,7 @@ def test_objects_given_up_on_are_not_planned_and_alone_they_end_the_run():
 def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
     """Two rows of three bars. Every check costs 50 ms of this thread's CPU. Row A's first
     check lifts two of its bars, no check lifts all three; row B's third check lifts all of
-    it. Without a budget the decision finishes A's plan, plans B and takes B's grasp of 3.
+    it. Without a budget (0) the decision finishes A's plan, plans B and takes B's grasp of 3.
     With a 0.08 s budget it stops after A's second check and takes the verified pair; A's
     plan, cut short, is not remembered as a group without a grasp."""
     import time
@@ -609,7 +609,7 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
 
     cfg = PlannerConfig("gp", max_physics=4)
     v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), PlannerSpec(), failures=())
+    d = next_pick(scene, GraspPlanner(v, cfg), PlannerSpec(decision_budget_s=0.0), failures=())
     assert d.status == "grasp" and d.expected == (3, 4, 5) and v.asked.count((0, 1, 2)) == 4
     v = Costly()
     d = next_pick(scene, GraspPlanner(v, cfg), PlannerSpec(decision_budget_s=0.08), failures=())
