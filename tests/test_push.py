@@ -239,3 +239,31 @@ def test_push_motions_stay_inside_the_hardware_safety_limits():
         assert 0.0 <= tips["left fingertip"][2] <= 0.006
     q_low = motion.ik([push.start[0], push.start[1], -0.05 + motion.finger_height], push.yaw, sc.robot.home)
     assert "palm" in monitor.check(q_low)  # outside the workspace box, whose floor is 35 mm up
+
+
+def test_a_push_that_did_not_pay_is_not_simulated_again_while_nothing_moved():
+    """Three pairs of lone bars, 20 cm apart; every grasp lifts one bar, pushed or not, so no
+    push pays.
+    The first decision simulates its two best pushes and remembers both; the next decision
+    on the same table (its memory passed on) simulates the next two instead, and without a
+    memory the same two again."""
+
+    class NothingJoins(ConsolidatingPhysics):
+        def check(self, scene, group, grasp):
+            return GraspResult(len(group) == 1, lifted=[group[0]])
+
+    scene = make_scene([(b[0], b[1] + x, b[2], b[3]) for x in (-0.2, 0.0, 0.2) for b in BARS])
+    physics = NothingJoins()
+    planner = GraspPlanner(physics, PlannerSpec().grasp_planner())
+    spec = PlannerSpec(mode="push-mog", push_checks=2)
+
+    def decide(failures):
+        physics.pushes = []
+        d = next_pick(scene, planner, spec, np.random.default_rng(0), failures=failures, pushes_left=5)
+        return d, [(p.target, p.toward) for p in physics.pushes]
+
+    first, tried = decide(())
+    assert first.status == "grasp" and len(tried) == 2 and first.remembered_pushes == 0
+    second, tried_next = decide(first.failures)
+    assert second.remembered_pushes == 2 and len(tried_next) == 2 and not set(tried) & set(tried_next)
+    assert decide(None)[1] == tried

@@ -65,6 +65,22 @@ class FailedGroup:
     result: PlanResult
 
 
+@dataclass(frozen=True, eq=False)
+class FailedPush:
+    """push-mog: a push that was simulated and did not pay: it failed (``lifted`` 0) or the
+    grasp it set up lifted ``lifted`` objects, too few to beat the grasp then. ``around``
+    holds (id, shape, vertices) of every object within reach of its group (the pushed object
+    and those it joins): while they are all where they were, simulating it again would give
+    the same verdict, so it is not simulated again unless the grasp it would compete with
+    now lifts fewer."""
+
+    target: int
+    toward: int
+    group: tuple[int, ...]
+    around: tuple
+    lifted: int
+
+
 def _around(scene, group, gripper) -> tuple:
     ids = objects_in_reach(scene, group, gripper, MEMORY_REACH_MARGIN)
     return tuple((i, scene.objects[i].shape, scene.polygon(i)) for i in ids)
@@ -142,9 +158,10 @@ class PickDecision:
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
     remembered: int = 0  # groups not planned again: their failure was remembered
+    remembered_pushes: int = 0  # push-mog: pushes not simulated again: they did not pay before
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
-    failures: tuple[FailedGroup, ...] = ()
+    failures: tuple[FailedGroup | FailedPush, ...] = ()
     # push-mog: the push to make (`mog_drake.geometry.push.Push`); ``group`` is then the group
     # it sets up, ``expected`` what the physics check lifted with that group's grasp after the
     # push, and ``grasp`` that grasp if it is to follow at once (planner.push_then_grasp);
@@ -168,6 +185,7 @@ class PickDecision:
             "physics_checks": self.physics_checks,
             "planning_time": self.planning_time,
             "remembered": self.remembered,
+            "remembered_pushes": self.remembered_pushes,
         }
 
 
@@ -177,7 +195,7 @@ def next_pick(
     spec: PlannerSpec | None = None,
     rng: np.random.Generator | None = None,
     avoid=(),
-    failures: tuple[FailedGroup, ...] | None = None,
+    failures: tuple[FailedGroup | FailedPush, ...] | None = None,
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     adjacent: float = 0.0,
@@ -249,7 +267,7 @@ def next_pick(
             and not d.unrecognised
             and d.status in ("grasp", "no_grasp")
         ):
-            _consider_pushes(scene, planner, spec, d, rng, avoid)
+            _consider_pushes(scene, planner, spec, d, rng, avoid, failures)
         return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
@@ -294,7 +312,11 @@ def next_pick(
         if failures is not None:
             around = _around(scene, group, planner.gripper)
             for k, f in enumerate(pending):
-                if len(f.group) == len(group) and (ids := _match(f.around, around)) is not None:
+                if (
+                    isinstance(f, FailedGroup)
+                    and len(f.group) == len(group)
+                    and (ids := _match(f.around, around)) is not None
+                ):
                     if set(ids[i] for i in f.group) == set(group):
                         res = _replay(f, ids, group, avoid)
                         del pending[k]
@@ -381,7 +403,7 @@ def lookahead(
     rng=None,
     avoid=(),
     grasp_unrecognised: bool = True,
-) -> tuple[FailedGroup, ...]:
+) -> tuple[FailedGroup | FailedPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
     without the objects ``decision`` grasps, as if they were gone and nothing else had moved,
@@ -406,7 +428,9 @@ def lookahead(
     return tuple(memory[:MEMORY_SIZE])
 
 
-def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid) -> None:
+def _consider_pushes(
+    scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid, memory=None
+) -> None:
     """push-mog: turns decision ``d`` (Alg. 1's) into a push when its grasp lifts fewer than
     ``push_below`` objects and the push and the grasp it sets up are expected to take more
     objects per second of robot time than ``d``'s grasp:
@@ -419,7 +443,12 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
     it, and fits the jaws. Those whose group is large enough to beat ``d`` by that rule, even
     if the grasp lifts it all, are simulated largest group first, then shortest push, up to
     ``push_checks`` of them: the push in physics (the verifier's ``push``), then the group's
-    grasp planned on the table the push leaves (the same planner, physics included)."""
+    grasp planned on the table the push leaves (the same planner, physics included).
+
+    ``memory`` (the previous decision's, with remember_failures; None: off): a push that did
+    not pay before (`FailedPush`), whose surroundings are where they were, is not simulated
+    again and does not count against ``push_checks``: the next candidate is simulated
+    instead. Pushes that do not pay now are added to ``d.failures``."""
     t0 = time.perf_counter()
     verifier = planner.verifier
     if not hasattr(verifier, "push"):
@@ -440,12 +469,23 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         if len(group) / (tp + push_duration(p, spec.push_speed) + tg) > n_now / tg:
             options.append((-len(group), p.distance, p, group))
     options.sort(key=lambda o: o[:2])
-    best, checks = None, 0
+    best, checks, simulated, failed = None, 0, 0, []
+    known = [f for f in memory or () if isinstance(f, FailedPush)]
     quick = copy.copy(planner)  # the grasps a push sets up: PUSH_GRASP_CHECKS checks each
     quick.config = replace(planner.config, max_physics=PUSH_GRASP_CHECKS)
-    for _, _, p, group in options[: spec.push_checks]:
+    for _, _, p, group in options:
+        if simulated >= spec.push_checks:
+            break
+        around = _around(scene, group, planner.gripper) if memory is not None else ()
+        if memory is not None and _did_not_pay(
+            known, p, group, around, n_now / tg, tp + push_duration(p, spec.push_speed) + tg
+        ):
+            d.remembered_pushes += 1
+            continue
+        simulated += 1
         r = verifier.push(scene, p, spec.push_speed)
         if r.error:
+            failed.append(FailedPush(p.target, p.toward, group, around, 0))
             continue
         res = quick.plan(r.scene, group, rng=rng, avoid=avoid)
         checks += res.tested
@@ -454,13 +494,18 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         elif res.best_lift is not None:
             grasp, lifted = res.best_lift[0], tuple(res.best_lift[1])
         else:
+            failed.append(FailedPush(p.target, p.toward, group, around, 0))
             continue
         rate = len(lifted) / (tp + push_duration(p, spec.push_speed) + tg)
-        if rate > n_now / tg and (best is None or len(lifted) > len(best[1])):
+        if rate <= n_now / tg:
+            failed.append(FailedPush(p.target, p.toward, group, around, len(lifted)))
+        elif best is None or len(lifted) > len(best[1]):
             best = (p, lifted, group, grasp, r.scene)
             if len(lifted) >= len(group):  # the largest group first: none to come lifts more
                 break
     d.physics_checks += checks
+    if memory is not None and failed:
+        d.failures = (tuple(failed) + tuple(d.failures))[:MEMORY_SIZE]
     if best is not None:
         d.now, d.push = n_now, best[0]
         d.status, d.group, d.expected = "push", best[2], best[1]
@@ -469,6 +514,19 @@ def _consider_pushes(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDec
         d.shapes = tuple(scene.objects[i].shape for i in d.group)
         d.partial = d.last_resort = False
     d.planning_time += time.perf_counter() - t0
+
+
+def _did_not_pay(known, p, group, around, now_rate: float, push_time: float) -> bool:
+    """Whether push ``p`` of ``group`` is a remembered `FailedPush` (same objects, each where
+    it was) that would not pay now either: it failed, or what its grasp lifted over
+    ``push_time`` does not beat ``now_rate`` (objects per second of the grasp now)."""
+    for f in known:
+        if len(f.group) != len(group) or (ids := _match(f.around, around)) is None:
+            continue
+        if ids.get(f.target) == p.target and ids.get(f.toward) == p.toward:
+            if sorted(ids.get(i, -1) for i in f.group) == sorted(group):
+                return f.lifted == 0 or f.lifted / push_time <= now_rate
+    return False
 
 
 def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
