@@ -107,9 +107,12 @@ class PlannerSpec:
     # limit). Beside the arm, planning is free while the arm carries and returns (about 5 s);
     # every second past that is a second the arm waits, while the larger group it might find
     # is a long shot (a multi-object check on a full table lifts its whole group in about 1 of
-    # 8 tries). Replaying the planner on 4 seeded tables (`bench replanning --budget 3`):
-    # decisions' CPU past 5 s 29.8 -> 2.6 s, objects per decision 1.57 -> 1.52.
-    decision_budget_s: float = 3.0
+    # 8 tries). Off by default: replaying the planner on 4 seeded tables (`bench replanning
+    # --budget 3`), 3 s cut the decisions' CPU past 5 s from 29.8 to 2.6 s at 1.57 -> 1.52
+    # objects per decision, but in the pick loop (table 0, mog) it halved the wait and cost
+    # a quarter of the objects per grasp (1.74 -> 1.32) and 17 % of PPH: a 4-object group's
+    # first check already costs about 2 s, so 3 s left one check for it.
+    decision_budget_s: float = 0.0
 
     def check(self) -> None:
         """Refuses a setting that would only fail once the robot is running."""
