@@ -144,6 +144,43 @@ def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
         wall.shutdown()
 
 
+def _spin_then(seconds, got=None):
+    """Busy for ``seconds`` of CPU, then returns what it was given after its arguments."""
+    _spin(seconds)
+    return got
+
+
+def test_a_plan_that_waits_for_the_lookahead_counts_its_latency_from_the_lookaheads_result():
+    """The lookahead (0.3 s of CPU, requested at t = 0) is visible at 0.3. A plan requested at
+    0.1 that waits for it and then computes 0.2 s is visible at 0.5, not at 0.3; it gets the
+    lookahead's result. With fixed latencies (1.0 s each): at 1.0 and 2.0. A lookahead that
+    raised gives the plan None."""
+    a, b = Worker("ahead", "cpu"), Worker("plan", "cpu")
+    try:
+        ahead = a.submit(_spin_then, 0.3, "memory", t_request=0.0, counter=1)
+        plan = b.submit(_spin_then, 0.2, t_request=0.1, counter=2, after=ahead)
+        assert not plan.visible(0.35, None, block=True)
+        assert not plan.visible(0.45, None, block=True)
+        assert plan.visible(0.55, None, block=True) and plan.result() == "memory"
+        assert plan.t_visible(None) == pytest.approx(ahead.cpu_time() + plan.cpu_time(), abs=0.02)
+        assert 0.2 <= plan.cpu_time() < 0.25  # its own CPU only: the wait cost none
+        ahead = a.submit(_spin_then, 0.05, "memory", t_request=0.0, counter=3)
+        plan = b.submit(_spin_then, 0.05, t_request=0.1, counter=4, after=ahead)
+        assert not plan.visible(1.9, 1.0, block=True) and plan.visible(2.0, 1.0, block=True)
+
+        def fails():
+            raise RuntimeError("lookahead failed")
+
+        ahead = a.submit(fails, t_request=0.0, counter=5)
+        plan = b.submit(_spin_then, 0.0, t_request=0.0, counter=6, after=ahead)
+        with pytest.raises(RuntimeError):
+            plan.visible(1.0, None, block=True)  # the lookahead's error surfaces here
+        assert plan.future.result()[0] is None
+    finally:
+        a.shutdown()
+        b.shutdown()
+
+
 def test_a_changed_table_forces_a_new_plan(tmp_path):
     """After the image taken over the bin, an object on the table is moved 5 cm (as if
     knocked by the lift). At the observe pose Perception's check finds the change, the

@@ -79,6 +79,11 @@ class PlannerSpec:
     # surroundings are where they were (3 mm) is replayed from that plan with no physics: its
     # failure, or its grasp. Only the groups the grasp disturbed are simulated again.
     lookahead: bool = True
+    # When the next image comes before the lookahead is done, its plan waits for the
+    # lookahead's memory instead of planning the table afresh beside it: the lookahead started
+    # seconds earlier on the same work, so the plan that waits is seen sooner, unless the last
+    # grasp disturbed most of what the lookahead planned.
+    wait_for_lookahead: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.

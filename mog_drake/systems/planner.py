@@ -153,12 +153,17 @@ class PlannerSystem(LeafSystem):
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
         ahead = context.get_abstract_state(self._ahead).get_value().job
+        after = None
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
-            # grasped since); else it is dropped, and its thread finishes it unused.
+            # grasped since). If not, with wait_for_lookahead this plan starts once it is
+            # (`Worker.submit`'s ``after``: its latency counts from then); else it is dropped,
+            # and its thread finishes it unused.
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory = ahead.result()
+            elif ahead.counter == cur.counter and self._spec.wait_for_lookahead:
+                after = ahead
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
@@ -174,10 +179,14 @@ class PlannerSystem(LeafSystem):
             t_request=t,
             counter=p.counter,
             info=(base, len(p.scene), p.scene, misses),
+            after=after,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, *ahead):
+        # ``ahead``: the lookahead's memory this plan waited for (None if the lookahead failed).
+        if ahead and ahead[0] is not None and failures is not None:
+            failures = ahead[0]
         d = next_pick(
             scene,
             self._planner,
