@@ -80,10 +80,13 @@ class PlannerSpec:
     # failure, or its grasp. Only the groups the grasp disturbed are simulated again.
     lookahead: bool = True
     # When the next image comes before the lookahead is done, its plan waits for the
-    # lookahead's memory instead of planning the table afresh beside it: the lookahead started
-    # seconds earlier on the same work, so the plan that waits is seen sooner, unless the last
-    # grasp disturbed most of what the lookahead planned.
-    wait_for_lookahead: bool = True
+    # lookahead's memory instead of planning the table afresh beside it (off: the lookahead is
+    # dropped). The lookahead started seconds earlier on the same work, so the plan that waits
+    # is seen sooner, unless the last grasp disturbed much of what the lookahead planned. On
+    # table 0 (mog) the arm waited 60 s with it, 48 s without: late decisions waited for
+    # nothing, but two early ones waited for a long lookahead and then replanned its
+    # disturbed groups (docs/experiments.md, session 18).
+    wait_for_lookahead: bool = False
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.
