@@ -36,9 +36,9 @@ from mog_drake.systems.jobs import LATENCY_MODES, LatencyConfig
 from mog_drake.systems.motion import MotionConfig
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
-# m kept between the planner's open jaws (their modelled plates) and the bin's outer walls:
-# a real 2F-85's fingers reach about 5 mm beyond the plates at full opening, and a grasp is
-# placed to about 5 mm.
+# m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their
+# outer faces) and the bin's outer walls: room for the real fingers' links around the pads
+# and for where a grasp lands (perception's pose error is about 1 mm, the arm's a few).
 KEEP_OUT_MARGIN = 0.01
 
 
@@ -396,7 +396,7 @@ def check_scenario(sc: Scenario) -> None:
     _in(g.finger_height, "gripper.finger_height (m)", 0, 0.2)
     for key in ("contact", "planner_contact"):
         k = getattr(sc, key)
-        # 10 ms already misses most successes a 2 ms step sees (docs/physics.md).
+        # A 5 ms step already missed 3 of the 4 successes a 2 ms step saw (docs/physics.md).
         _in(k.plant.time_step, f"{key}.plant.time_step (s)", 0, 0.01)
         _in(k.hydroelastic_modulus, f"{key}.hydroelastic_modulus (Pa)", 0, 1e12)
         for mu in ("mu_object", "mu_finger", "mu_table"):
