@@ -86,8 +86,8 @@ class Job:
         return self
 
     def elapsed(self) -> float:
-        """Time the job has run so far on its clock (s): wall time since it started (was
-        submitted, or what it waits for was done), or its thread's CPU time since it started."""
+        """Time the job has run so far on its clock (s): wall time since it was submitted (or
+        since what it waited for was done), or its thread's CPU time since it started."""
         if self.clock == "wall":
             return time.perf_counter() - self._started.get("t0", self.t_submit)
         if "clock_id" not in self._started:
@@ -159,20 +159,21 @@ class Worker:
     def submit(self, fn, *args, t_request: float, counter: int, info=None, after: Job | None = None) -> Job:
         """Runs ``fn(*args)`` on the worker's thread. With ``after`` (a job of another worker),
         it first waits for that job to finish, idle, and is then called with that job's result
-        (None if it raised) after ``args``; its wall and CPU time count from then."""
+        (None if it raised) after ``args``; its wall time counts from then (else from the
+        request), its CPU time from its own start."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
         started: dict = {}
 
         def run():
-            extra = ()
+            extra, t0 = (), t_submit  # wall time counts from the request, queueing included
             if after is not None:
                 try:
                     extra = (after.result(),)
                 except Exception:  # its own collector reports it; this job goes on without it
                     extra = (None,)
-            t0 = time.perf_counter()
+                t0 = time.perf_counter()  # ... or from when what it waited for was done
             clock_id = time.pthread_getcpuclockid(threading.get_ident())
             cpu0 = time.clock_gettime(clock_id)
             started.update(clock_id=clock_id, cpu0=cpu0, t0=t0)
