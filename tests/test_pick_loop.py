@@ -23,11 +23,13 @@ class LiftsAnything:
         return GraspResult(True, lifted=list(group))
 
 
-def _diagram(tmp_path, latency=None, objects=None):
+def _diagram(tmp_path, latency=None, objects=None, mode="sog", **planner):
     truth = make_scene(objects or [("large_hexagon", 0.05, -0.10, 0.3), ("blue_quad", -0.05, 0.12, 0.9)])
     truth.save(tmp_path / "scene.yaml")
     sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=latency or LatencyConfig())
-    sc.planner.mode = "sog"
+    sc.planner.mode = mode
+    for k, v in planner.items():
+        setattr(sc.planner, k, v)
     d, parts = MakePickDiagram(sc, verifier=LiftsAnything())
     sim = Simulator(d)
     return sc, d, parts, sim
@@ -179,6 +181,41 @@ def test_a_plan_that_waits_for_the_lookahead_counts_its_latency_from_the_lookahe
     finally:
         a.shutdown()
         b.shutdown()
+
+
+@pytest.mark.parametrize(
+    "planning_s,wait,expect",
+    [(0.5, False, "used"), (6.0, False, "dropped"), (6.0, True, "waited")],
+)
+def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path, planning_s, wait, expect):
+    """mog, three objects apart, fixed latencies. A lookahead of 0.5 s is visible when the
+    next image is planned ("used"); one of 6 s is not, and is dropped, or with
+    wait_for_lookahead the plan waits for it ("waited") and is then visible 6 s after the
+    lookahead's result, not after its own image."""
+    latency = LatencyConfig("fixed", perception_s=0.1, planning_s=planning_s)
+    objects = [
+        ("large_hexagon", 0.05, -0.10, 0.3),
+        ("blue_quad", -0.12, 0.12, 0.9),
+        ("red_triangle", 0.15, 0.1, 0.2),
+    ]
+    sc, d, parts, sim = _diagram(tmp_path, latency, objects, mode="mog", wait_for_lookahead=wait)
+    ctx = sim.get_mutable_context()
+    c, pl = parts["controller"], parts["planner"]
+    decisions = {}
+    try:
+        while ctx.get_time() < 40.0 and len(c.state(c.GetMyContextFromRoot(ctx)).attempts) < 2:
+            sim.AdvanceTo(ctx.get_time() + 0.05)
+            dec = pl.GetOutputPort("decision").Eval(pl.GetMyContextFromRoot(ctx))
+            decisions.setdefault(dec.counter, dec)
+    finally:
+        _close(parts)
+    attempts = c.state(c.GetMyContextFromRoot(ctx)).attempts
+    assert attempts[0]["lookahead"] == "" and attempts[1]["lookahead"] == expect
+    second = decisions[max(decisions)]
+    if expect == "waited":  # visible 6 s after the lookahead's result, itself 6 s after its request
+        assert second.t_visible - second.t_request > planning_s + 1.0
+    else:
+        assert second.t_visible - second.t_request == pytest.approx(planning_s, abs=0.06)
 
 
 def test_a_changed_table_forces_a_new_plan(tmp_path):

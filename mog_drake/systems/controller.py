@@ -203,6 +203,10 @@ class ControllerSystem(LeafSystem):
                                 "objects_seen": d.objects_seen,
                                 "physics_checks": dec.physics_checks,
                                 "expected": list(dec.expected),
+                                # Groups replayed from memory, and whether the lookahead's
+                                # memory was in time for this plan (see PlannerSystem).
+                                "remembered": dec.remembered,
+                                "lookahead": d.lookahead,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
                             }
                         )
@@ -305,6 +309,9 @@ class ControllerSystem(LeafSystem):
                 "planning_cpu": d.cpu_time,
                 "physics_checks": dec.physics_checks,
                 "objects_seen": d.objects_seen,
+                "remembered": dec.remembered,
+                "remembered_pushes": dec.remembered_pushes,
+                "lookahead": d.lookahead,
             }
         )
 

@@ -36,6 +36,9 @@ class Decision(_Immutable):
     # per object as of its image ((shape, x, y, count): see tally_misses).
     targets: tuple = ()
     misses: tuple = ()
+    # The lookahead's memory for this plan: "used" (visible at its image), "waited" (the plan
+    # waited for it: wait_for_lookahead), "dropped" (not done in time), or "" (none ran).
+    lookahead: str = ""
 
 
 class PlannerSystem(LeafSystem):
@@ -102,7 +105,7 @@ class PlannerSystem(LeafSystem):
         if job is not None and job.visible(t, self._latency, self._block):
             job_counter = job.counter
             d, rng = job.result()
-            base, n_objects, scene, misses = job.info
+            base, n_objects, scene, misses, ahead_use = job.info
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
             if d.status == "grasp":
                 blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
@@ -124,6 +127,7 @@ class PlannerSystem(LeafSystem):
                 base.pushes + (d.status == "push"),
                 _targets(d, scene),
                 misses,
+                ahead_use,
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
@@ -153,17 +157,18 @@ class PlannerSystem(LeafSystem):
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
         ahead = context.get_abstract_state(self._ahead).get_value().job
-        after = None
+        after, ahead_use = None, ""
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
             # grasped since). If not, with wait_for_lookahead this plan starts once it is
             # (`Worker.submit`'s ``after``: its latency counts from then); else it is dropped,
             # and its thread finishes it unused.
+            ahead_use = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
-                memory = ahead.result()
+                memory, ahead_use = ahead.result(), "used"
             elif ahead.counter == cur.counter and self._spec.wait_for_lookahead:
-                after = ahead
+                after, ahead_use = ahead, "waited"
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
@@ -178,7 +183,7 @@ class PlannerSystem(LeafSystem):
             given_up,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene), p.scene, misses),
+            info=(base, len(p.scene), p.scene, misses, ahead_use),
             after=after,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
