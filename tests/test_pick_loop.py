@@ -189,9 +189,10 @@ def test_a_plan_that_waits_for_the_lookahead_counts_its_latency_from_the_lookahe
 )
 def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path, planning_s, wait, expect):
     """mog, three objects apart, fixed latencies. A lookahead of 0.5 s is visible when the
-    next image is planned ("used"); one of 6 s is not, and is dropped, or with
-    wait_for_lookahead the plan waits for it ("waited") and is then visible 6 s after the
-    lookahead's result, not after its own image."""
+    next image is planned ("used"); one of 6 s is not, and is dropped (with fixed latencies
+    there is no point within a plan at which to merge it), or with wait_for_lookahead the
+    plan waits for it ("waited") and is then visible 6 s after the lookahead's result, not
+    after its own image."""
     latency = LatencyConfig("fixed", perception_s=0.1, planning_s=planning_s)
     objects = [
         ("large_hexagon", 0.05, -0.10, 0.3),
@@ -363,3 +364,23 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     plant = parts["handles"].plant
     p = plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(ctx), parts["handles"].bodies[0]).translation()
     assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.03 and p[2] < 0.01
+
+
+def test_a_late_lookahead_is_merged_once_visible_in_simulated_time():
+    """The lookahead (0.3 s of CPU from t = 0) is visible at 0.3. A plan requested at 0.1 may
+    use it once its own CPU time brings it to 0.3: not at its start, though the lookahead
+    has long finished on the wall clock, but after 0.2 s of its own."""
+    from mog_drake.systems.planner import late_memory
+
+    a = Worker("ahead", "cpu")
+    try:
+        ahead = a.submit(_spin_then, 0.3, ("memory",), t_request=0.0, counter=1)
+        ahead.future.result()
+        late = late_memory(ahead, 0.1, "cpu")
+        assert late.get() is None
+        _spin(0.1)
+        assert late.get() is None
+        _spin(0.12)
+        assert late.get() == ("memory",)
+    finally:
+        a.shutdown()

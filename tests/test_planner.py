@@ -616,3 +616,28 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
     assert d.status == "grasp" and d.partial and d.expected == (0, 1)
     assert v.asked == [(0, 1, 2), (0, 1, 2)]
     assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
+
+
+def test_a_late_memory_replays_the_groups_still_to_plan():
+    """Three lone objects, no grasp for any. A decision whose late memory (the lookahead's
+    verdicts) comes in after its first group plans that one and replays the other two."""
+    from mog_drake.planning.picking import LateMemory, next_pick
+
+    scene = make_scene(
+        [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
+    )
+    spec = PlannerSpec(last_resort=False)
+    v = FakeVerifier()
+    known = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, failures=()).failures
+    assert len(v.asked) == 3 and len(known) == 3
+    polls = []
+
+    def poll():
+        polls.append(1)
+        return None if len(polls) == 1 else known
+
+    v = FakeVerifier()
+    d = next_pick(
+        scene, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, failures=(), late=LateMemory(poll)
+    )
+    assert len(v.asked) == 1 and d.merged and d.remembered == 2 and d.status == "no_grasp"

@@ -85,8 +85,13 @@ class PlannerSpec:
     # is seen sooner, unless the last grasp disturbed much of what the lookahead planned. On
     # table 0 (mog) the arm waited 60 s with it, 48 s without: late decisions waited for
     # nothing, but two early ones waited for a long lookahead and then replanned its
-    # disturbed groups (docs/experiments.md, session 18).
+    # disturbed groups (docs/experiments.md, session 18). merge_lookahead keeps the gains.
     wait_for_lookahead: bool = False
+    # When the next image comes before the lookahead is done (measured latencies), its plan
+    # starts at once and takes the lookahead's verdicts in, for the groups it has still to
+    # plan, as soon as they are visible in simulated time (before: the lookahead was dropped).
+    # It never simulates more than a plan without them.
+    merge_lookahead: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.

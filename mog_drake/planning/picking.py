@@ -81,6 +81,21 @@ class FailedPush:
     lifted: int
 
 
+class LateMemory:
+    """A memory that comes in while a decision is being planned: the lookahead's, when the
+    image came before it was done (see `mog_drake.systems.planner.PlannerSystem`). ``poll``
+    returns it once the decision may use it (it is visible in simulated time by this point
+    of the decision), else None; `get` asks until it has it."""
+
+    def __init__(self, poll):
+        self._poll, self.memory = poll, None
+
+    def get(self):
+        if self.memory is None:
+            self.memory = self._poll()
+        return self.memory
+
+
 def _around(scene, group, gripper) -> tuple:
     ids = objects_in_reach(scene, group, gripper, MEMORY_REACH_MARGIN)
     return tuple((i, scene.objects[i].shape, scene.polygon(i)) for i in ids)
@@ -159,6 +174,7 @@ class PickDecision:
     plans: list[PlanResult] = field(default_factory=list)
     remembered: int = 0  # groups not planned again: their failure was remembered
     remembered_pushes: int = 0  # push-mog: pushes not simulated again: they did not pay before
+    merged: bool = False  # a late memory (``late``) came in and was used from some group on
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup | FailedPush, ...] = ()
@@ -186,6 +202,7 @@ class PickDecision:
             "planning_time": self.planning_time,
             "remembered": self.remembered,
             "remembered_pushes": self.remembered_pushes,
+            "merged": self.merged,
         }
 
 
@@ -200,6 +217,7 @@ def next_pick(
     pushes_left: int = 0,
     adjacent: float = 0.0,
     exclude=(),
+    late: LateMemory | None = None,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -244,6 +262,10 @@ def next_pick(
     exclude: objects given up on (`tally_misses`): no group holding one is planned; when they
     are all that is left, the status is "gave_up".
 
+    late (with ``failures``; an extension): a memory that may come in while this decision is
+    planned (`LateMemory`: the lookahead's, not done when the image came). Before each group
+    it is asked for; once in, its verdicts join ``failures``' for the groups still to plan.
+
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
     that much CPU time on the decision and holds a verified partial lift, no more groups are
     planned and no more candidates simulated: the partial lift is taken."""
@@ -260,6 +282,7 @@ def next_pick(
             grasp_unrecognised,
             adjacent=ADJACENT_GAP,
             exclude=exclude,
+            late=late,
         )
         if (
             pushes_left > 0
@@ -267,7 +290,10 @@ def next_pick(
             and not d.unrecognised
             and d.status in ("grasp", "no_grasp")
         ):
-            _consider_pushes(scene, planner, spec, d, rng, avoid, failures)
+            memory = failures
+            if failures is not None and late is not None and late.get():
+                memory = tuple(failures) + tuple(late.memory)
+            _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
         return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
@@ -308,6 +334,10 @@ def next_pick(
             break
         if partial_lifts and best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
+        if failures is not None and late is not None and not decision.merged and late.get():
+            have = {id(f) for f in pending}
+            pending += [f for f in late.memory if id(f) not in have]
+            decision.merged = True
         res = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,7 +13,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
+from mog_drake.planning.picking import LateMemory, PickDecision, lookahead, next_pick, tally_misses
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -36,8 +37,9 @@ class Decision(_Immutable):
     # per object as of its image ((shape, x, y, count): see tally_misses).
     targets: tuple = ()
     misses: tuple = ()
-    # The lookahead's memory for this plan: "used" (visible at its image), "waited" (the plan
-    # waited for it: wait_for_lookahead), "dropped" (not done in time), or "" (none ran).
+    # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
+    # in while the plan ran: merge_lookahead), "waited" (the plan waited for it:
+    # wait_for_lookahead), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
 
 
@@ -71,6 +73,7 @@ class PlannerSystem(LeafSystem):
         self._spec.check()
         latency = latency or LatencyConfig()
         self._latency = latency.of("planning")
+        self._clock = latency.clock
         self._block = block
         self._worker = Worker("planner", latency.clock)
         self._ahead_worker = Worker("lookahead", latency.clock)
@@ -106,6 +109,8 @@ class PlannerSystem(LeafSystem):
             job_counter = job.counter
             d, rng = job.result()
             base, n_objects, scene, misses, ahead_use = job.info
+            if ahead_use == "late":
+                ahead_use = "merged" if d.merged else "dropped"
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
             if d.status == "grasp":
                 blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
@@ -157,7 +162,7 @@ class PlannerSystem(LeafSystem):
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
         ahead = context.get_abstract_state(self._ahead).get_value().job
-        after, ahead_use = None, ""
+        after, late, ahead_use = None, None, ""
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
@@ -169,6 +174,8 @@ class PlannerSystem(LeafSystem):
                 memory, ahead_use = ahead.result(), "used"
             elif ahead.counter == cur.counter and self._spec.wait_for_lookahead:
                 after, ahead_use = ahead, "waited"
+            elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
+                late, ahead_use = (ahead, t), "late"  # merged into the plan once visible
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
@@ -181,6 +188,7 @@ class PlannerSystem(LeafSystem):
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.max_pushes - base.pushes,
             given_up,
+            late,
             t_request=t,
             counter=p.counter,
             info=(base, len(p.scene), p.scene, misses, ahead_use),
@@ -188,10 +196,11 @@ class PlannerSystem(LeafSystem):
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, *ahead):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, *ahead):
         # ``ahead``: the lookahead's memory this plan waited for (None if the lookahead failed).
         if ahead and ahead[0] is not None and failures is not None:
             failures = ahead[0]
+        source = None if late is None else late_memory(*late, self._clock)
         d = next_pick(
             scene,
             self._planner,
@@ -202,11 +211,32 @@ class PlannerSystem(LeafSystem):
             grasp_unrecognised=grasp_unrecognised,
             pushes_left=pushes_left,
             exclude=exclude,
+            late=source,
         )
         return d, rng
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
+
+
+def late_memory(job, t_request: float, clock: str) -> LateMemory:
+    """The memory of lookahead ``job`` for a plan requested at simulated time ``t_request``
+    and starting now on this thread: it may be used once the job is done and its result
+    visible by that point of the plan, the request plus the plan's time so far on ``clock``
+    ("cpu": this thread's CPU time, "wall")."""
+    now = time.thread_time if clock == "cpu" else time.perf_counter
+    c0 = now()
+
+    def poll():
+        if not job.future.done():
+            return None
+        try:
+            memory = job.result()
+        except Exception:  # the lookahead failed: plan without it
+            return ()
+        return memory if job.t_visible(None) <= t_request + now() - c0 + 1e-9 else None
+
+    return LateMemory(poll)
 
 
 def _targets(d: PickDecision, scene) -> tuple:
