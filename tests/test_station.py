@@ -757,11 +757,11 @@ def test_touching_bars_are_split_right(seed, yaw_deg):
 
 
 def test_a_thin_bar_lying_on_its_side_comes_to_rest_on_the_table(tmp_path):
-    """A thin bar knocked onto its side (a 7 mm slab) lies still on the station's table, as
-    upright objects do: after 2 s its speed is under 1 mm/s and its turn rate under
-    0.01 rad/s, and it has crept less than 0.5 mm. (On a half-space table it never came to
-    rest: it buzzed at 4-8 rad/s, crept millimetres, and now and then made the contact solver
-    diverge and end a pick run; see ContactConfig.table_collision.)"""
+    """A thin bar knocked onto its side (a 7 mm slab) at the table's centre lies still on the
+    station's table, as upright objects do: after 2 s its speed is under 1 mm/s and its turn
+    rate under 0.01 rad/s, and it has crept less than 0.5 mm. (On a half-space table it never
+    came to rest there: it buzzed at 4-8 rad/s. Beside the bin it buzzes on the box too; see
+    ContactConfig.table_collision.)"""
     from pydrake.math import RigidTransform, RollPitchYaw
     from pydrake.systems.analysis import Simulator
 

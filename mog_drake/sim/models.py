@@ -76,10 +76,11 @@ class ContactConfig:
     mu_finger: float = 0.5
     mu_table: float = 0.005
     # The table's collision geometry: "box" or "halfspace". A thin bar lying on its side (a
-    # 7 mm slab) never comes to rest on the half-space: it buzzes at 4-8 rad/s and 2-10 cm/s,
-    # creeps, and now and then makes the solver diverge. On the box it lies still. Upright
-    # objects rest on both; the half-space was chosen for its cheaper steps
-    # (`mog-drake bench table` compares the two on the planner's checks).
+    # 7 mm slab) at the table's centre never comes to rest on the half-space: it buzzes at
+    # 4-8 rad/s and 2-10 cm/s, creeps, and now and then makes the solver diverge; on the box
+    # it lies still there. Not everywhere: beside the bin, at (-0.215, 0.258), it buzzes on
+    # the box too (1-5 rad/s), cause not found (docs/physics.md). Upright objects rest on
+    # both (`mog-drake bench table` compares the two on the planner's checks).
     table_collision: str = "box"
 
 
