@@ -481,9 +481,7 @@ def test_full_pick_real_time_with_a_planner_slowed_by_2_s(replay_dir, monkeypatc
 def test_ctrl_c_stops_the_arm_and_closes_the_connections(replay_dir):
     from mog_drake.systems.pick import run_pick
 
-    # The first decision comes after 2 s of sleep plus perception and planning in real time:
-    # 6 s leave room for a loaded machine (4 s did not, beside two simulations).
-    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=6.0)
+    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=4.0)
     ur, control, receive = fake_ur5(sc.robot.home)
     polls = [0]
     real = receive.getActualQ
@@ -624,9 +622,7 @@ def test_a_push_on_hardware_streams_within_the_limits_with_the_jaws_closed(repla
         return PickDecision("push", group=(0, 1), expected=(0, 1), push=push, now=1)
 
     monkeypatch.setattr(ls, "next_pick", push_now)
-    # The first decision comes after 2 s of sleep plus perception and planning in real time:
-    # 6 s leave room for a loaded machine (4 s did not, beside two simulations).
-    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=6.0)
+    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=4.0)
     sc.planner.mode = "push-mog"
     ur, control, receive = fake_ur5(sc.robot.home)
     with FakeRobotiq() as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client:
