@@ -96,12 +96,13 @@ def clear_of_boxes(grasps, boxes, gripper: GripperGeometry | None = None) -> np.
     clear = np.ones(len(g), dtype=bool)
     a = gripper.opening / 2 + gripper.plate_thickness / 2  # half length along the closing axis
     b = gripper.plate_width / 2
-    c, s = np.abs(np.cos(g[:, 2])), np.abs(np.sin(g[:, 2]))
+    cos, sin = np.cos(g[:, 2]), np.sin(g[:, 2])
+    c, s = np.abs(cos), np.abs(sin)
     for x0, x1, y0, y1 in boxes:
         cx, cy, ex, ey = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2, (y1 - y0) / 2
         dx, dy = cx - g[:, 0], cy - g[:, 1]
-        along = np.abs(dx * np.cos(g[:, 2]) + dy * np.sin(g[:, 2]))
-        across = np.abs(-dx * np.sin(g[:, 2]) + dy * np.cos(g[:, 2]))
+        along = np.abs(dx * cos + dy * sin)
+        across = np.abs(-dx * sin + dy * cos)
         apart = (
             (np.abs(dx) >= ex + a * c + b * s)
             | (np.abs(dy) >= ey + a * s + b * c)

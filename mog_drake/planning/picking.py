@@ -325,6 +325,8 @@ def next_pick(
         if not groups:
             return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
     partial_lifts = spec.partial_lifts and mode == "mog"
+    if not partial_lifts:
+        deadline = None  # the budget ends a search only with a verified partial lift in hand
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     pending = list(failures or ())  # remembered failures not yet met in this scene
@@ -332,7 +334,7 @@ def next_pick(
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
-        if partial_lifts and best is not None and deadline is not None and time.thread_time() > deadline:
+        if best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
         if failures is not None and late is not None and not decision.merged and late.get():
             have = {id(f) for f in pending}
@@ -354,12 +356,9 @@ def next_pick(
                             decision.remembered += 1
                         break
         if res is None:
-            if partial_lifts and deadline is not None:
-                res = planner.plan(
-                    scene, group, rng=rng, avoid=avoid, deadline=deadline, fallback=best is not None
-                )
-            else:
-                res = planner.plan(scene, group, rng=rng, avoid=avoid)
+            res = planner.plan(
+                scene, group, rng=rng, avoid=avoid, deadline=deadline, fallback=best is not None
+            )
         if failures is not None and not res.found and not res.cut_short:
             seen.append(FailedGroup(tuple(res.group), around, res))
         decision.plans.append(res)
