@@ -125,6 +125,8 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     one_line_error(*_pick(capsys, bodies)[::2], "planner.check_bodies", "all")
     table = _write(tmp_path, "table.yaml", "contact: {table_collision: plane}\n")
     one_line_error(*_pick(capsys, table)[::2], "contact.table_collision", "plane")
+    surface = _write(tmp_path, "surface.yaml", "contact: {plant: {contact_surface_representation: quad}}\n")
+    one_line_error(*_pick(capsys, surface)[::2], "contact.plant.contact_surface_representation", "quad")
     # Unreadable: as root every file is readable, so the OS's refusal is modelled.
     locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
     real = Path.read_bytes
@@ -422,6 +424,7 @@ _scenario_keys = st.sampled_from(
         "latency.mode",
         "contact.plant.time_step",
         "contact.table_collision",
+        "contact.plant.contact_surface_representation",
         "controller.period",
         "bin.depth",
         "hardware.max_joint_speed",

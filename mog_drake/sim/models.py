@@ -75,12 +75,13 @@ class ContactConfig:
     mu_object: float = 0.5
     mu_finger: float = 0.5
     mu_table: float = 0.005
-    # The table's collision geometry: "box" or "halfspace". A thin bar lying on its side (a
-    # 7 mm slab) at the table's centre never comes to rest on the half-space: it buzzes at
-    # 4-8 rad/s and 2-10 cm/s, creeps, and now and then makes the solver diverge; on the box
-    # it lies still there. Not everywhere: beside the bin, at (-0.215, 0.258), it buzzes on
-    # the box too (1-5 rad/s), cause not found (docs/physics.md). Upright objects rest on
-    # both (`mog-drake bench table` compares the two on the planner's checks).
+    # The table's collision geometry: "box" or "halfspace". With polygon contact surfaces
+    # (``plant.contact_surface_representation``) a thin bar lying on its side (a 7 mm slab)
+    # rests on a handful of contact points and buzzes for good, on either table, except where
+    # the box's own triangles cut its contact surface finer; with triangle surfaces it lies
+    # still (docs/physics.md: `bench rest`). The pick-and-place scenario's station uses
+    # triangles. Upright objects rest either way (`bench table` compares the two tables on
+    # the planner's checks).
     table_collision: str = "box"
 
 

@@ -3,8 +3,9 @@
 `run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
 
 * geometry: the conditions and the candidate filter (`bench.geometry`)
-* verifier, agreement, hold, bodies, table: the physics check (`bench.physics`)
-* perception, station, replanning: rendered tables, the station's step, replanning (`bench.station`)
+* verifier, agreement, hold, bodies, table, surface: the physics check (`bench.physics`)
+* perception, station, replanning, rest: rendered tables, the station's step, replanning,
+  objects at rest on the station's table (`bench.station`)
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ BENCHES = (
     "hold",
     "bodies",
     "table",
+    "surface",
+    "rest",
 )
 
 
@@ -81,7 +84,14 @@ def run(
         doc = bench_hold(scenes, seed, window, progress=bar)
         bar.close()
         return doc, hold_text(doc)
-    elif what in ("bodies", "table"):
+    elif what == "rest":
+        from mog_drake.experiments.bench.station import bench_rest, rest_text
+
+        bar = Progress(scenes, what, enabled=progress)
+        doc = bench_rest(scenes, seed, progress=bar)
+        bar.close()
+        return doc, rest_text(doc)
+    elif what in ("bodies", "table", "surface"):
         from mog_drake.experiments.bench.physics import bench_pair, pair_text
 
         bar = Progress(scenes, what, enabled=progress)

@@ -280,6 +280,10 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
 PAIRS = {
     "bodies": (("group_bodies", "bodies", "group"), ("grasp_bodies", "bodies", "grasp")),
     "table": (("halfspace", "table_collision", "halfspace"), ("box", "table_collision", "box")),
+    "surface": (
+        ("polygon", "contact_surface_representation", "polygon"),
+        ("triangle", "contact_surface_representation", "triangle"),
+    ),
 }
 
 
@@ -288,10 +292,12 @@ def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict
     picking planner checks (`_replay_checks`). "bodies": simulating every object any grasp of
     the group can reach (``VerifierConfig.bodies`` "group") or only what this grasp can touch
     ("grasp"). "table": the table's collision geometry a half-space or a box
-    (``ContactConfig.table_collision``). Returns per kind (multi, lone, on_side) the checks,
+    (``ContactConfig.table_collision``). "surface": hydroelastic contact surfaces as
+    polygons or triangles (``ContactConfig.plant.contact_surface_representation``). Returns per kind (multi, lone, on_side) the checks,
     successes each way, verdicts that differ (success or lifted objects), mean bodies
     simulated, and mean CPU seconds each way; the CPU seconds of all checks; and the
     differing checks, to replay."""
+    import copy
     from dataclasses import replace
 
     from mog_drake.scenario import Scenario
@@ -305,6 +311,10 @@ def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict
     def config(field, value):
         if field == "table_collision":
             return replace(base, contact=replace(base.contact, table_collision=value))
+        if field == "contact_surface_representation":
+            plant = copy.copy(base.contact.plant)  # Drake's config: not a dataclass
+            plant.contact_surface_representation = value
+            return replace(base, contact=replace(base.contact, plant=plant))
         return replace(base, **{field: value})
 
     ref = _Timed(DrakeVerifier(config(field_a, value_a), planner.verifier.gripper))

@@ -198,3 +198,104 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
             if progress:
                 progress(done, 2 * tables)
     return rows
+
+
+# Restless after settling: an object at rest on the table turns slower than this (rad/s) and
+# moves slower than this (m/s); a toppled bar buzzing on too few contact points did 1-12 rad/s.
+REST_TURN = 0.05
+REST_SPEED = 0.005
+# Where `bench rest` lays its copies: the table in front of the arm, clear of the bin (m).
+REST_REGION = (-0.2, 0.4, -0.4, 0.2)
+
+
+def bench_rest(
+    spots: int = 20, seed: int = 0, settle: float = 1.0, watch: float = 3.0, progress=None
+) -> dict:
+    """Objects left alone on the simulated station's table (arm still at its observe pose),
+    with hydroelastic contact surfaces as polygons and as triangles
+    (``ContactConfig.plant.contact_surface_representation``). For every shape of the default
+    library and every resting form of a bar (``NAME:on_side``, ``NAME:on_end``): ``spots``
+    copies at seeded random, well-separated spots and yaws of REST_REGION, in one
+    station, settled ``settle`` s, then watched ``watch`` s. Per shape and representation:
+    the copies restless (turning faster than REST_TURN or moving faster than REST_SPEED at
+    any 0.05 s sample), the worst turn rate and speed, and CPU seconds per simulated second;
+    a solver failure is reported as such."""
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.scenario import Scenario
+    from mog_drake.scenes import Scene, SceneObject, default_library
+    from mog_drake.station import MakeStation, hold_still
+
+    library = default_library()
+    names = sorted(library.shapes) + sorted(library.resting_variants())
+    x0, x1, y0, y1 = REST_REGION
+    rows, done = [], 0
+    for name in names:
+        rng = np.random.default_rng([seed, names.index(name)])
+        # A jittered grid: copies 8 cm or more apart, so none touches another.
+        cols = max(1, int((x1 - x0 - 0.06) // 0.1))
+        objs = []
+        for k in range(spots):
+            gx, gy = k % cols, k // cols
+            x = x0 + 0.05 + 0.1 * gx + rng.uniform(-0.01, 0.01)
+            y = y0 + 0.05 + 0.1 * gy + rng.uniform(-0.01, 0.01)
+            objs.append(SceneObject(name, float(x), float(y), float(rng.uniform(-np.pi, np.pi))))
+        scene = Scene(objs, library, table=(x0, x1, y0, y1))
+        for rep in ("polygon", "triangle"):
+            sc = Scenario()
+            sc.contact.plant.contact_surface_representation = rep
+            d, h = MakeStation(sc, scene)
+            sim = Simulator(d)
+            ctx = sim.get_mutable_context()
+            hold_still(sc, d, ctx)
+            plant = h.plant
+            pc = plant.GetMyContextFromRoot(ctx)
+            bodies = list(h.bodies.values())
+            turn = np.zeros(len(bodies))
+            speed = np.zeros(len(bodies))
+            failed = ""
+            try:
+                sim.AdvanceTo(settle)
+                c0 = time.process_time()
+                for k in range(1, int(round(watch / 0.05)) + 1):
+                    sim.AdvanceTo(settle + 0.05 * k)
+                    for i, b in enumerate(bodies):
+                        V = plant.EvalBodySpatialVelocityInWorld(pc, b)
+                        turn[i] = max(turn[i], np.linalg.norm(V.rotational()))
+                        speed[i] = max(speed[i], np.linalg.norm(V.translational()))
+                cpu = (time.process_time() - c0) / watch
+            except RuntimeError as e:
+                failed, cpu = str(e).split(".")[0][:60], float("nan")
+            rows.append(
+                {
+                    "shape": name,
+                    "surface": rep,
+                    "copies": len(bodies),
+                    "restless": "-" if failed else int(np.sum((turn > REST_TURN) | (speed > REST_SPEED))),
+                    "max_turn_rad_s": float(turn.max()),
+                    "max_speed_mm_s": float(1e3 * speed.max()),
+                    "cpu_s_per_sim_s": cpu,
+                    "failed": failed,
+                }
+            )
+        done += 1
+        if progress:
+            progress(done, len(names))
+    return {"spots": spots, "seed": seed, "settle_s": settle, "watch_s": watch, "rows": rows}
+
+
+def rest_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
+
+    rows = doc["rows"]
+    text = format_table([{k: v for k, v in r.items() if k != "failed" or v} for r in rows])
+    for rep in ("polygon", "triangle"):
+        got = [r for r in rows if r["surface"] == rep]
+        restless = sum(r["restless"] for r in got if r["restless"] != "-")
+        failed = sum(bool(r["failed"]) for r in got)
+        cpu = np.nanmean([r["cpu_s_per_sim_s"] for r in got])
+        text += (
+            f"\n{rep}: {restless} of {sum(r['copies'] for r in got)} objects restless after "
+            f"{doc['settle_s']:g} s, {failed} stations failed; mean {cpu:.2f} CPU s per simulated s"
+        )
+    return text
