@@ -90,6 +90,8 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     assert code == 2 and "--candidates must be at least 1" in err
     code, _, err = run(capsys, "bench", "hold", "--window", "0")
     assert code == 2 and "--window must be a positive number, got 0.0" in err and err.count("\n") == 1
+    code, _, err = run(capsys, "bench", "rest", "--scenes", "26")
+    assert code == 2 and "copies per shape (--scenes) must be 1..25, got 26" in err and err.count("\n") == 1
 
 
 def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():

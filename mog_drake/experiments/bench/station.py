@@ -226,14 +226,16 @@ def bench_rest(
     from mog_drake.scenes import Scene, SceneObject, default_library
     from mog_drake.station import MakeStation, hold_still
 
+    x0, x1, y0, y1 = REST_REGION
+    cols, rows_ = int((x1 - x0 - 0.06) // 0.1), int((y1 - y0 - 0.06) // 0.1)
+    if not 1 <= spots <= cols * rows_:
+        raise MogError(f"rest bench: copies per shape (--scenes) must be 1..{cols * rows_}, got {spots}")
     library = default_library()
     names = sorted(library.shapes) + sorted(library.resting_variants())
-    x0, x1, y0, y1 = REST_REGION
     rows, done = [], 0
     for name in names:
         rng = np.random.default_rng([seed, names.index(name)])
         # A jittered grid: copies 8 cm or more apart, so none touches another.
-        cols = max(1, int((x1 - x0 - 0.06) // 0.1))
         objs = []
         for k in range(spots):
             gx, gy = k % cols, k // cols
