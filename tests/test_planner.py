@@ -618,18 +618,16 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
     assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
 
 
-def test_past_filler_after_s_a_decision_grasps_a_lone_object_out_of_every_groups_reach(monkeypatch):
+def test_past_filler_after_s_a_decision_grasps_a_lone_object_out_of_every_groups_reach():
     """A row of four bars whose grasps all fail, a row of three whose third check lifts it,
     a lone quad within reach of the four, and a lone hexagon far from everything. Every check
     costs 50 ms of this thread's CPU. Without a filler the decision plans the four, then the
     three, and takes the three. With filler_after_s 0.12 s it plans the four (4 checks, past
-    0.12 s), then grasps the hexagon instead of planning on: not the quad, among the
-    surroundings the four's failure depends on. That failure is remembered: the next
-    decision, on the table without the hexagon, does not check it again and takes the
-    three. The lookahead never fills."""
+    0.12 s), then grasps the hexagon instead of planning on: not the quad, in the four's
+    reach. The four's failure is remembered: the next decision, on the table without the
+    hexagon, does not check it again and takes the three. The lookahead never fills."""
     import time
 
-    from mog_drake.planning import picking
     from mog_drake.planning.picking import lookahead, next_pick
 
     four = [("thin_bar", x, 0.0, math.pi / 2) for x in (-0.018, -0.006, 0.006, 0.018)]
@@ -670,12 +668,6 @@ def test_past_filler_after_s_a_decision_grasps_a_lone_object_out_of_every_groups
     v = Costly()
     d2 = next_pick(rest, GraspPlanner(v, cfg), spec, failures=d.failures)
     assert d2.status == "grasp" and d2.expected == (4, 5, 6) and (0, 1, 2, 3) not in v.asked
-    # A lone grasp whose jaws come near another object is not taken (here: every object is
-    # "near" within 1 m): the hexagon is planned, and the decision plans on.
-    monkeypatch.setattr(picking, "FILLER_MARGIN", 1.0)
-    v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), spec, failures=())
-    assert d.status == "grasp" and not d.filler and d.expected == (4, 5, 6) and (8,) in v.asked
 
 
 def test_a_late_memory_replays_the_groups_still_to_plan():

@@ -21,7 +21,7 @@ import numpy as np
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import objects_in_reach, ranked_groups
-from mog_drake.geometry.groups import adjacent_groups, objects_at_grasp
+from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates, push_duration
 from mog_drake.planning.config import PlannerSpec
@@ -348,10 +348,10 @@ def next_pick(
             and time.thread_time() > filler_at
         ):
             filler_at = None  # one try per decision
-            res, take = _filler(scene, groups, planner, rng, avoid, seen + pending)
+            res = _filler(scene, groups, planner, rng, avoid)
             decision.physics_checks += sum(r.tested for r in res)
             decision.plans += res
-            if take:
+            if res and res[-1].found:
                 found = res[-1]
                 decision.status, decision.grasp, decision.group = "grasp", found.grasp, found.group
                 decision.expected = tuple(found.result.lifted) if found.result is not None else found.group
@@ -445,45 +445,33 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
     return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
 
 
-# A filler (PlannerSpec.filler_after_s) tries this many lone objects at most, and takes a
-# grasp whose swept jaws come no closer than this to another object (m).
+# A filler (PlannerSpec.filler_after_s) tries this many lone objects at most.
 FILLER_TRIES = 2
-FILLER_MARGIN = 0.005
 
 
-def _filler(scene, groups, planner: GraspPlanner, rng, avoid, verdicts) -> tuple[list[PlanResult], bool]:
-    """The plans of up to FILLER_TRIES lone objects, and whether the last one is to be taken.
-    Lone: Alg. 1
-    grasps it alone (in no multi-object group of ``groups``), and no verdict depends on it
-    (it is not among the surroundings of any group of ``verdicts``, this decision's and the
-    remembered ones, `FailedGroup`). Its grasp counts only if the jaws' swept rectangle comes
-    within 5 mm of no other object (`objects_at_grasp`) and its check lifted it alone: taking
-    it then disturbs nothing planned."""
-    in_multi = {int(i) for g in groups if len(g) > 1 for i in g}
-    polys = scene.polygons()
-
-    def relied_on(i: int) -> bool:
-        shape, v = scene.objects[i].shape, polys.polygon(i)
-        for f in verdicts:
-            for _, shape_f, w in getattr(f, "around", ()):
-                if shape_f == shape and len(w) == len(v):
-                    d = np.linalg.norm(v[:, None, :] - w[None, :, :], axis=2)
-                    if d.min(axis=1).max() <= MEMORY_TOL:
-                        return True
-        return False
-
-    lone = [g[0] for g in groups if len(g) == 1 and g[0] not in in_multi and not relied_on(g[0])]
+def _filler(scene, groups, planner: GraspPlanner, rng, avoid) -> list[PlanResult]:
+    """The plans of up to FILLER_TRIES lone objects, the last one found if any: objects that
+    Alg. 1 grasps alone (a group of their own in ``groups`` and in no larger one) and that
+    are out of reach (MEMORY_REACH_MARGIN beyond the jaws' reach) of every multi-object group
+    of ``groups`` and of every other object, in Alg. 1's order."""
+    multi = [g for g in groups if len(g) > 1]
+    near: set[int] = set()
+    for g in multi:
+        near.update(objects_in_reach(scene, g, planner.gripper, MEMORY_REACH_MARGIN))
+    lone = [
+        g[0]
+        for g in groups
+        if len(g) == 1
+        and g[0] not in near
+        and objects_in_reach(scene, g, planner.gripper, MEMORY_REACH_MARGIN) == [g[0]]
+    ]
     out = []
     for i in lone[:FILLER_TRIES]:
         res = planner.plan(scene, (i,), rng=rng, avoid=avoid)
         out.append(res)
-        if (
-            res.found
-            and objects_at_grasp(scene, (i,), res.grasp, planner.gripper, FILLER_MARGIN) == [i]
-            and (res.result is None or list(res.result.lifted) == [i])
-        ):
-            return out, True
-    return out, False
+        if res.found:
+            break
+    return out
 
 
 def lookahead(
