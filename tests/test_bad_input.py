@@ -419,7 +419,6 @@ _scenario_keys = st.sampled_from(
         "planner.diameter_condition",
         "planner.check_bodies",
         "planner.decision_budget_s",
-        "planner.filler_after_s",
         "planner.push_speed",
         "planner.max_pushes",
         "latency.mode",

@@ -203,7 +203,6 @@ class PickRun:
             ),
             "perception_time_s": self.perception_time,
             "retakes": self.retakes,
-            "fillers": sum(bool(a.get("filler")) for a in self.attempts),  # planner.filler_after_s
             "pushes": len(self.pushes),
             "push_time_s": self.push_time,
             "push_gain": self.push_gain(),
