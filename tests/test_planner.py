@@ -618,58 +618,6 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
     assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
 
 
-def test_past_filler_after_s_a_decision_grasps_a_lone_object_out_of_every_groups_reach():
-    """A row of four bars whose grasps all fail, a row of three whose third check lifts it,
-    a lone quad within reach of the four, and a lone hexagon far from everything. Every check
-    costs 50 ms of this thread's CPU. Without a filler the decision plans the four, then the
-    three, and takes the three. With filler_after_s 0.12 s it plans the four (4 checks, past
-    0.12 s), then grasps the hexagon instead of planning on: not the quad, in the four's
-    reach. The four's failure is remembered: the next decision, on the table without the
-    hexagon, does not check it again and takes the three. The lookahead never fills."""
-    import time
-
-    from mog_drake.planning.picking import lookahead, next_pick
-
-    four = [("thin_bar", x, 0.0, math.pi / 2) for x in (-0.018, -0.006, 0.006, 0.018)]
-    three = [("thin_bar", x, 0.2, math.pi / 2) for x in (-0.012, 0.0, 0.012)]
-    quad, hexagon = ("blue_quad", 0.0, -0.075, 0.0), ("large_hexagon", 0.2, -0.2, 0.0)
-    scene = make_scene(four + three + [quad, hexagon])
-
-    class Costly(FakeVerifier):
-        def check(self, scene, group, grasp):
-            end = time.thread_time() + 0.05
-            while time.thread_time() < end:
-                pass
-            names = tuple(scene.objects[i].shape for i in group)
-            self.asked.append(tuple(group))
-            if len(group) == 1:  # a lone object lifts
-                return GraspResult(True, lifted=list(group))
-            if names == ("thin_bar",) * 3 and min(o for o in group) >= 4:
-                n = sum(g == tuple(group) for g in self.asked)
-                return GraspResult(n == 3, lifted=list(group) if n == 3 else [])
-            return GraspResult(False)
-
-    cfg = PlannerConfig("gp", max_physics=4)
-    spec = PlannerSpec(last_resort=False)
-    v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), spec, failures=())
-    assert d.status == "grasp" and d.expected == (4, 5, 6) and not d.filler
-    assert v.asked[:4] == [(0, 1, 2, 3)] * 4
-    spec = PlannerSpec(last_resort=False, filler_after_s=0.12)
-    v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), spec, failures=())
-    assert d.status == "grasp" and d.filler and d.group == (8,) and d.expected == (8,)
-    assert v.asked == [(0, 1, 2, 3)] * 4 + [(8,)]
-    assert any(f.group == (0, 1, 2, 3) for f in d.failures)
-    # The lookahead plans the table without the hexagon to its end: no filler there.
-    ahead = lookahead(scene, d, GraspPlanner(Costly(), cfg), spec)
-    assert ahead and ahead[0].result.found and ahead[0].group == (4, 5, 6)
-    rest = make_scene(four + three + [quad])
-    v = Costly()
-    d2 = next_pick(rest, GraspPlanner(v, cfg), spec, failures=d.failures)
-    assert d2.status == "grasp" and d2.expected == (4, 5, 6) and (0, 1, 2, 3) not in v.asked
-
-
 def test_a_late_memory_replays_the_groups_still_to_plan():
     """Three lone objects, no grasp for any. A decision whose late memory (the lookahead's
     verdicts) comes in after its first group plans that one and replays the other two."""

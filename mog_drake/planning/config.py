@@ -126,16 +126,6 @@ class PlannerSpec:
     # a quarter of the objects per grasp (1.74 -> 1.32) and 17 % of PPH: a 4-object group's
     # first check already costs about 2 s, so 3 s left one check for it.
     decision_budget_s: float = 0.0
-    # Fill the wait with a lone pick (mog, with remember_failures; an extension; 0: off). Once
-    # this thread has spent this much CPU time on a decision without finding a grasp of two or
-    # more objects, and before it plans the next multi-object group, it grasps a lone object
-    # instead, one that Alg. 1 would grasp alone later anyway: in no multi-object group, and
-    # out of the jaws' reach (3 cm) of every group and of every other object, so that taking it
-    # disturbs nothing already planned. The groups found to fail so far are remembered, and
-    # the lookahead plans the rest of the search while the arm takes the lone object. On full
-    # tables a decision needs 10-18 s of CPU for 5-7 multi-object checks, while the arm is
-    # back at its observe pose 3-4 s after the image (docs/experiments.md, session 19).
-    filler_after_s: float = 0.0
 
     def check(self) -> None:
         """Refuses a setting that would only fail once the robot is running."""
@@ -158,8 +148,6 @@ class PlannerSpec:
             )
         if not 0 <= self.decision_budget_s <= 600:
             raise MogError(f"planner: decision_budget_s must be in [0, 600] s, got {self.decision_budget_s}")
-        if not 0 <= self.filler_after_s <= 600:
-            raise MogError(f"planner: filler_after_s must be in [0, 600] s, got {self.filler_after_s}")
         if self.check_bodies not in ("group", "grasp"):
             raise MogError(f"planner.check_bodies must be one of group, grasp, got {self.check_bodies!r}")
         if not 0 < self.group_radius <= 0.2:

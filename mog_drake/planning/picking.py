@@ -175,7 +175,6 @@ class PickDecision:
     remembered: int = 0  # groups not planned again: their failure was remembered
     remembered_pushes: int = 0  # push-mog: pushes not simulated again: they did not pay before
     merged: bool = False  # a late memory (``late``) came in and was used from some group on
-    filler: bool = False  # a lone pick that fills the wait (PlannerSpec.filler_after_s)
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup | FailedPush, ...] = ()
@@ -204,7 +203,6 @@ class PickDecision:
             "remembered": self.remembered,
             "remembered_pushes": self.remembered_pushes,
             "merged": self.merged,
-            "filler": self.filler,
         }
 
 
@@ -277,7 +275,7 @@ def next_pick(
         d = next_pick(
             scene,
             planner,
-            replace(spec, mode="mog", filler_after_s=0.0),
+            replace(spec, mode="mog"),
             rng,
             avoid,
             failures,
@@ -329,9 +327,6 @@ def next_pick(
     partial_lifts = spec.partial_lifts and mode == "mog"
     if not partial_lifts:
         deadline = None  # the budget ends a search only with a verified partial lift in hand
-    filler_at = None
-    if spec.filler_after_s > 0 and mode == "mog" and failures is not None:
-        filler_at = time.thread_time() + spec.filler_after_s
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     pending = list(failures or ())  # remembered failures not yet met in this scene
@@ -341,22 +336,6 @@ def next_pick(
             break
         if best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
-        if (
-            filler_at is not None
-            and len(group) > 1
-            and (best is None or len(best[1]) < 2)
-            and time.thread_time() > filler_at
-        ):
-            filler_at = None  # one try per decision
-            res = _filler(scene, groups, planner, rng, avoid)
-            decision.physics_checks += sum(r.tested for r in res)
-            decision.plans += res
-            if res and res[-1].found:
-                found = res[-1]
-                decision.status, decision.grasp, decision.group = "grasp", found.grasp, found.group
-                decision.expected = tuple(found.result.lifted) if found.result is not None else found.group
-                decision.filler = True
-                break
         if failures is not None and late is not None and not decision.merged and late.get():
             have = {id(f) for f in pending}
             pending += [f for f in late.memory if id(f) not in have]
@@ -445,35 +424,6 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
     return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
 
 
-# A filler (PlannerSpec.filler_after_s) tries this many lone objects at most.
-FILLER_TRIES = 2
-
-
-def _filler(scene, groups, planner: GraspPlanner, rng, avoid) -> list[PlanResult]:
-    """The plans of up to FILLER_TRIES lone objects, the last one found if any: objects that
-    Alg. 1 grasps alone (a group of their own in ``groups`` and in no larger one) and that
-    are out of reach (MEMORY_REACH_MARGIN beyond the jaws' reach) of every multi-object group
-    of ``groups`` and of every other object, in Alg. 1's order."""
-    multi = [g for g in groups if len(g) > 1]
-    near: set[int] = set()
-    for g in multi:
-        near.update(objects_in_reach(scene, g, planner.gripper, MEMORY_REACH_MARGIN))
-    lone = [
-        g[0]
-        for g in groups
-        if len(g) == 1
-        and g[0] not in near
-        and objects_in_reach(scene, g, planner.gripper, MEMORY_REACH_MARGIN) == [g[0]]
-    ]
-    out = []
-    for i in lone[:FILLER_TRIES]:
-        res = planner.plan(scene, (i,), rng=rng, avoid=avoid)
-        out.append(res)
-        if res.found:
-            break
-    return out
-
-
 def lookahead(
     scene,
     decision: PickDecision,
@@ -494,8 +444,6 @@ def lookahead(
     rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
     if len(rest) == 0:
         return ()
-    # No filler here: nothing waits for the lookahead; it plans the whole search.
-    spec = replace(spec, filler_after_s=0.0)
     ahead = next_pick(rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=0)
     memory = list(ahead.failures)
     found = ahead.plans[-1] if ahead.plans else None

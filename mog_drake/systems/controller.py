@@ -208,8 +208,6 @@ class ControllerSystem(LeafSystem):
                                 "remembered": dec.remembered,
                                 "lookahead": d.lookahead,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
-                                # A lone pick filling the wait (planner.filler_after_s).
-                                **({"filler": True} if dec.filler else {}),
                             }
                         )
         elif s.mode in self.MOTIONS:
