@@ -192,9 +192,9 @@ class Scenario:
     # The grasp verifier's model. By default the world's own: table friction changes how
     # pushed objects turn and slide, and with the paper's near-frictionless table (mu_table
     # 0.005, the row experiments' model) the verifier promised groups the world did not lift.
-    # Its contact surfaces stay polygons: triangles cost the check 1.7x CPU, and on the
-    # planner's checks the two agreed on every success verdict of a lifted group's own objects
-    # (`bench surface`; docs/physics.md). A check lasts 1.4 s, too short for a buzz to matter.
+    # Its contact surfaces stay polygons: triangles cost the check 1.7x CPU, for 4 of 33
+    # verdicts differing on the planner's checks, all lone grasps that lifted neighbours too
+    # (`bench surface`; docs/physics.md). A check lasts 1.4 s, too short for a buzz to grow.
     planner_contact: ContactConfig = field(default_factory=lambda: _contact(0.3))
     # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
     # planner's physics check alike.
