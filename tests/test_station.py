@@ -763,10 +763,8 @@ def test_bars_lying_on_their_side_come_to_rest_on_the_table():
     than 1 mm/s, and creeps less than 0.5 mm. With polygon contact surfaces (one contact point
     per polygon) the last two buzzed at 1-12 rad/s for good, on the table's box and on a
     half-space alike (`mog-drake bench rest`)."""
-    from pydrake.systems.analysis import Simulator
-
     from mog_drake.scenes import Scene, SceneObject, default_library
-    from mog_drake.station.sim import hold_still
+    from mog_drake.station import still_station
 
     spots = [(0.0, 0.0, 0.7), (0.15, -0.05, 0.7), (-0.215, 0.258, 0.0)]
     scene = Scene(
@@ -774,12 +772,8 @@ def test_bars_lying_on_their_side_come_to_rest_on_the_table():
     )
     sc = Scenario()
     assert sc.contact.plant.contact_surface_representation == "triangle"
-    d, h = MakeStation(sc, scene)
-    sim = Simulator(d)
-    ctx = sim.get_mutable_context()
-    hold_still(sc, d, ctx)
+    sim, h, pctx = still_station(sc, scene)
     plant = h.plant
-    pctx = plant.GetMyContextFromRoot(ctx)
     bodies = list(h.bodies.values())
     sim.AdvanceTo(0.5)
     p0 = [plant.EvalBodyPoseInWorld(pctx, b).translation() for b in bodies]

@@ -36,6 +36,7 @@ from mog_drake.station.sim import (
     render_still,
     rendered_intrinsics,
     scene_from_spec,
+    still_station,
 )
 
 __all__ = [
@@ -48,6 +49,7 @@ __all__ = [
     "StationHandles",
     "hold_still",
     "render_still",
+    "still_station",
     "rendered_intrinsics",
     "scene_from_spec",
 ]

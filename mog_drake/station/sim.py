@@ -153,6 +153,18 @@ def hold_still(scenario: Scenario, station, context) -> None:
     station.GetInputPort("gripper.position").FixValue(context, [OPEN_WIDTH])
 
 
+def still_station(scenario: Scenario, scene=None):
+    """(simulator, handles, plant context) of the simulated station of ``scenario`` (``scene``
+    replaces its objects) with its inputs held still (`hold_still`): the objects left alone."""
+    from pydrake.systems.analysis import Simulator
+
+    station, handles = MakeSimStation(scenario, scene)
+    sim = Simulator(station)
+    ctx = sim.get_mutable_context()
+    hold_still(scenario, station, ctx)
+    return sim, handles, handles.plant.GetMyMutableContextFromRoot(ctx)
+
+
 def render_still(scenario: Scenario, station, context=None):
     """(rgb, depth) of a simulated station at rest: arm at its observe pose, gripper open."""
     ctx = context if context is not None else station.CreateDefaultContext()

@@ -79,18 +79,14 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     every object piled in the bin; and the pile retired (`BinRetirement`)."""
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
-    from pydrake.systems.analysis import Simulator
 
     from mog_drake.scenario import ClutteredScene, Scenario
-    from mog_drake.station import MakeStation, hold_still
+    from mog_drake.station import still_station
     from mog_drake.station.scoring import BinRetirement
 
     sc = Scenario(scene=ClutteredScene(seed=seed))
-    d, h = MakeStation(sc)
-    sim = Simulator(d)
-    ctx = sim.get_mutable_context()
-    hold_still(sc, d, ctx)
-    pc = h.plant.GetMyMutableContextFromRoot(ctx)
+    sim, h, pc = still_station(sc)
+    ctx = sim.get_context()
     sim.Initialize()
     sim.AdvanceTo(0.3)
 
@@ -220,11 +216,9 @@ def bench_rest(
     the copies restless (turning faster than REST_TURN or moving faster than REST_SPEED at
     any 0.05 s sample), the worst turn rate and speed, and CPU seconds per simulated second;
     a solver failure is reported as such."""
-    from pydrake.systems.analysis import Simulator
-
     from mog_drake.scenario import Scenario
     from mog_drake.scenes import Scene, SceneObject, default_library
-    from mog_drake.station import MakeStation, hold_still
+    from mog_drake.station import still_station
 
     x0, x1, y0, y1 = REST_REGION
     cols, rows_ = int((x1 - x0 - 0.06) // 0.1), int((y1 - y0 - 0.06) // 0.1)
@@ -246,12 +240,8 @@ def bench_rest(
         for rep in ("polygon", "triangle"):
             sc = Scenario()
             sc.contact.plant.contact_surface_representation = rep
-            d, h = MakeStation(sc, scene)
-            sim = Simulator(d)
-            ctx = sim.get_mutable_context()
-            hold_still(sc, d, ctx)
+            sim, h, pc = still_station(sc, scene)
             plant = h.plant
-            pc = plant.GetMyContextFromRoot(ctx)
             bodies = list(h.bodies.values())
             turn = np.zeros(len(bodies))
             speed = np.zeros(len(bodies))
