@@ -32,6 +32,7 @@ from mog_drake.station.ports import PORTS_IN, PORTS_OUT, SIM_ONLY_PORTS
 from mog_drake.station.sim import (
     MakeSimStation,
     StationHandles,
+    fastest_motion,
     hold_still,
     render_still,
     rendered_intrinsics,
@@ -50,6 +51,7 @@ __all__ = [
     "hold_still",
     "render_still",
     "still_station",
+    "fastest_motion",
     "rendered_intrinsics",
     "scene_from_spec",
 ]

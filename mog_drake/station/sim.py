@@ -165,6 +165,21 @@ def still_station(scenario: Scenario, scene=None):
     return sim, handles, handles.plant.GetMyMutableContextFromRoot(ctx)
 
 
+def fastest_motion(sim, plant, plant_context, bodies, until: float, step: float = 0.05) -> np.ndarray:
+    """Advances ``sim`` to ``until`` in steps of ``step`` s; per body of ``bodies``, the
+    fastest turn (rad/s) and the fastest speed (m/s) seen at those steps (len x 2)."""
+    worst = np.zeros((len(bodies), 2))
+    t0 = sim.get_context().get_time()
+    for k in range(1, int(round((until - t0) / step)) + 1):
+        sim.AdvanceTo(t0 + step * k)
+        for i, b in enumerate(bodies):
+            V = plant.EvalBodySpatialVelocityInWorld(plant_context, b)
+            worst[i] = np.maximum(
+                worst[i], [np.linalg.norm(V.rotational()), np.linalg.norm(V.translational())]
+            )
+    return worst
+
+
 def render_still(scenario: Scenario, station, context=None):
     """(rgb, depth) of a simulated station at rest: arm at its observe pose, gripper open."""
     ctx = context if context is not None else station.CreateDefaultContext()

@@ -294,9 +294,9 @@ def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict
     ("grasp"). "table": the table's collision geometry a half-space or a box
     (``ContactConfig.table_collision``). "surface": hydroelastic contact surfaces as
     polygons or triangles (``ContactConfig.plant.contact_surface_representation``). Returns
-    per kind (multi, lone, on_side) the checks, successes each way, verdicts that differ (success or lifted objects), mean bodies
-    simulated, and mean CPU seconds each way; the CPU seconds of all checks; and the
-    differing checks, to replay."""
+    per kind (multi, lone, on_side) the checks, successes each way, verdicts that differ
+    (success or lifted objects), mean bodies simulated, and mean CPU seconds each way; the CPU
+    seconds of all checks; and the differing checks, to replay."""
     import copy
     from dataclasses import replace
 
