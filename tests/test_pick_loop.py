@@ -147,59 +147,24 @@ def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
 
 
 def _spin_then(seconds, got=None):
-    """Busy for ``seconds`` of CPU, then returns what it was given after its arguments."""
+    """Busy for ``seconds`` of CPU, then returns ``got``."""
     _spin(seconds)
     return got
 
 
-def test_a_plan_that_waits_for_the_lookahead_counts_its_latency_from_the_lookaheads_result():
-    """The lookahead (0.3 s of CPU, requested at t = 0) is visible at 0.3. A plan requested at
-    0.1 that waits for it and then computes 0.2 s is visible at 0.5, not at 0.3; it gets the
-    lookahead's result. With fixed latencies (1.0 s each): at 1.0 and 2.0. A lookahead that
-    raised gives the plan None."""
-    a, b = Worker("ahead", "cpu"), Worker("plan", "cpu")
-    try:
-        ahead = a.submit(_spin_then, 0.3, "memory", t_request=0.0, counter=1)
-        plan = b.submit(_spin_then, 0.2, t_request=0.1, counter=2, after=ahead)
-        assert not plan.visible(0.35, None, block=True)
-        assert not plan.visible(0.45, None, block=True)
-        assert plan.visible(0.55, None, block=True) and plan.result() == "memory"
-        assert plan.t_visible(None) == pytest.approx(ahead.cpu_time() + plan.cpu_time(), abs=0.02)
-        assert 0.2 <= plan.cpu_time() < 0.25  # its own CPU only: the wait cost none
-        ahead = a.submit(_spin_then, 0.05, "memory", t_request=0.0, counter=3)
-        plan = b.submit(_spin_then, 0.05, t_request=0.1, counter=4, after=ahead)
-        assert not plan.visible(1.9, 1.0, block=True) and plan.visible(2.0, 1.0, block=True)
-
-        def fails():
-            raise RuntimeError("lookahead failed")
-
-        ahead = a.submit(fails, t_request=0.0, counter=5)
-        plan = b.submit(_spin_then, 0.0, t_request=0.0, counter=6, after=ahead)
-        with pytest.raises(RuntimeError):
-            plan.visible(1.0, None, block=True)  # the lookahead's error surfaces here
-        assert plan.future.result()[0] is None
-    finally:
-        a.shutdown()
-        b.shutdown()
-
-
-@pytest.mark.parametrize(
-    "planning_s,wait,expect",
-    [(0.5, False, "used"), (6.0, False, "dropped"), (6.0, True, "waited")],
-)
-def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path, planning_s, wait, expect):
+@pytest.mark.parametrize("planning_s,expect", [(0.5, "used"), (6.0, "dropped")])
+def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path, planning_s, expect):
     """mog, three objects apart, fixed latencies. A lookahead of 0.5 s is visible when the
     next image is planned ("used"); one of 6 s is not, and is dropped (with fixed latencies
-    there is no point within a plan at which to merge it), or with wait_for_lookahead the
-    plan waits for it ("waited") and is then visible 6 s after the lookahead's result, not
-    after its own image."""
+    there is no point within a plan at which to merge it). Either way the plan of the second
+    image is visible its own latency after its request."""
     latency = LatencyConfig("fixed", perception_s=0.1, planning_s=planning_s)
     objects = [
         ("large_hexagon", 0.05, -0.10, 0.3),
         ("blue_quad", -0.12, 0.12, 0.9),
         ("red_triangle", 0.15, 0.1, 0.2),
     ]
-    sc, d, parts, sim = _diagram(tmp_path, latency, objects, mode="mog", wait_for_lookahead=wait)
+    sc, d, parts, sim = _diagram(tmp_path, latency, objects, mode="mog")
     ctx = sim.get_mutable_context()
     c, pl = parts["controller"], parts["planner"]
     decisions = {}
@@ -213,10 +178,7 @@ def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path
     attempts = c.state(c.GetMyContextFromRoot(ctx)).attempts
     assert attempts[0]["lookahead"] == "" and attempts[1]["lookahead"] == expect
     second = decisions[max(decisions)]
-    if expect == "waited":  # visible 6 s after the lookahead's result, itself 6 s after its request
-        assert second.t_visible - second.t_request > planning_s + 1.0
-    else:
-        assert second.t_visible - second.t_request == pytest.approx(planning_s, abs=0.06)
+    assert second.t_visible - second.t_request == pytest.approx(planning_s, abs=0.06)
 
 
 def test_a_changed_table_forces_a_new_plan(tmp_path):

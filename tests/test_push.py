@@ -170,6 +170,53 @@ def test_push_mog_grasps_when_pushing_does_not_pay_or_no_push_is_left():
     assert d.status == "grasp"
 
 
+def test_a_push_the_lookahead_found_to_pay_is_replayed_with_no_physics_while_its_objects_lie_still():
+    """push-mog with the lookahead. The first decision grasps a pair (it lifts 2: no push is
+    considered); the lookahead plans the rest (two bars apart) and finds that pushing one to
+    the other pays. The next image shows those bars where they were: its decision is that
+    push and the same grasp, with no push simulated and no physics check. Listed in the
+    other order, the push is replayed in the new ids (Alg. 1's lone grasp, planned first for
+    the bar the lookahead did not, is checked). With one bar 1 cm away from where it was,
+    the push is simulated again."""
+    from mog_drake.planning.picking import PaidPush, lookahead
+
+    pair = [("thick_bar", 0.15, -0.009, 0.0), ("thick_bar", 0.15, 0.009, 0.0)]
+    scene = make_scene([*pair, *BARS])
+    spec = PlannerSpec(mode="push-mog")
+    physics = ConsolidatingPhysics()
+    planner = GraspPlanner(physics, spec.grasp_planner())
+    d = next_pick(scene, planner, spec, np.random.default_rng(0), failures=(), pushes_left=5)
+    assert d.status == "grasp" and set(d.expected) == {0, 1} and physics.pushes == []
+    memory = lookahead(scene, d, planner, spec, np.random.default_rng(1), pushes_left=5)
+    paid = [f for f in memory if isinstance(f, PaidPush)]
+    assert len(paid) == 1 and len(physics.pushes) >= 1
+
+    def decide(bars):
+        again = ConsolidatingPhysics()
+        planner = GraspPlanner(again, spec.grasp_planner())
+        nd = next_pick(
+            make_scene(bars), planner, spec, np.random.default_rng(2), failures=memory, pushes_left=5
+        )
+        return nd, again
+
+    nd, again = decide(BARS)
+    assert nd.status == "push" and again.pushes == [] and nd.physics_checks == 0
+    assert nd.remembered_pushes == 1 and (nd.push.target, nd.push.toward) == (
+        paid[0].push.target,
+        paid[0].push.toward,
+    )
+    assert np.allclose(nd.grasp, paid[0].grasp) and set(nd.expected) == {0, 1}
+    assert ConsolidatingPhysics().check(nd.after, (0, 1), nd.grasp).success
+    assert not any(f is paid[0] for f in nd.failures)  # made now: not replayed again
+    nd, again = decide(BARS[::-1])  # the lookahead's bar 0 is bar 1 now, and back
+    assert nd.status == "push" and again.pushes == [] and nd.remembered_pushes == 1
+    assert (nd.push.target, nd.push.toward) == (1 - paid[0].push.target, 1 - paid[0].push.toward)
+    assert np.allclose(nd.grasp, paid[0].grasp)
+    moved = [BARS[1], ("thick_bar", 0.0, -0.0325, 0.0)]
+    nd, again = decide(moved)
+    assert nd.status == "push" and len(again.pushes) >= 1 and nd.remembered_pushes == 0
+
+
 def test_a_simulated_push_moves_its_object_where_the_geometry_said_on_a_table_with_friction():
     from mog_drake.scenario import Scenario
     from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig

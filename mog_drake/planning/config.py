@@ -77,20 +77,14 @@ class PlannerSpec:
     # decided, the next decision is planned on the same image without the objects it grasps,
     # on a second worker, while the arm executes it. In the next image, every group whose
     # surroundings are where they were (3 mm) is replayed from that plan with no physics: its
-    # failure, or its grasp. Only the groups the grasp disturbed are simulated again.
+    # failure, or its grasp. Only the groups the grasp disturbed are simulated again. In
+    # push-mog it considers pushes too: a push that paid is replayed, with its grasp.
     lookahead: bool = True
-    # When the next image comes before the lookahead is done, its plan waits for the
-    # lookahead's memory instead of planning the table afresh beside it (off: the lookahead is
-    # dropped). The lookahead started seconds earlier on the same work, so the plan that waits
-    # is seen sooner, unless the last grasp disturbed much of what the lookahead planned. On
-    # table 0 (mog) the arm waited 60 s with it, 48 s without: late decisions waited for
-    # nothing, but two early ones waited for a long lookahead and then replanned its
-    # disturbed groups (docs/experiments.md, session 18). merge_lookahead keeps the gains.
-    wait_for_lookahead: bool = False
     # When the next image comes before the lookahead is done (measured latencies), its plan
     # starts at once and takes the lookahead's verdicts in, for the groups it has still to
     # plan, as soon as they are visible in simulated time (before: the lookahead was dropped).
-    # It never simulates more than a plan without them.
+    # It never simulates more than a plan without them. (Waiting for the lookahead instead was
+    # tried and measured worse: docs/experiments.md, session 18.)
     merge_lookahead: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
@@ -100,9 +94,9 @@ class PlannerSpec:
     push_speed: float = 0.05
     push_reach: float = 0.12
     # Pushes are considered only when Alg. 1's grasp lifts fewer objects than this (in its
-    # physics check): each consideration simulates pushes and grasps, and the lookahead does
-    # not plan pushes ahead. With 2, lone objects are paired; a pair made a trio would add
-    # 15-20 % (3 objects in 8-8.5 s against 2 in 6.5 s) for 6-10 s of planning before the arm.
+    # physics check): each consideration simulates pushes and grasps (6-10 s of CPU, planned
+    # ahead by the lookahead when it is in time). With 2, lone objects are paired; a pair made
+    # a trio would add 15-20 % (3 objects in 8-8.5 s against 2 in 6.5 s).
     push_below: int = 2
     # After a push, grasp the group it set up at once, where the physics check left it, with
     # no new image: the arm goes up, opens its jaws and on to that grasp instead of back to

@@ -81,6 +81,23 @@ class FailedPush:
     lifted: int
 
 
+@dataclass(frozen=True, eq=False)
+class PaidPush:
+    """push-mog: a push the lookahead simulated that paid (see `lookahead`): ``push``, the
+    ``group`` it sets up, and the grasp of that group planned where the simulated push left it,
+    which lifted ``lifted``. ``around`` as `FailedPush`'s, before the push; ``after`` holds
+    (id, SceneObject) of each of those objects where the push left them (it moved nothing
+    else). While they are all where they were before it, the push and its grasp are replayed
+    with no physics."""
+
+    push: Push
+    group: tuple[int, ...]
+    around: tuple
+    lifted: tuple[int, ...]
+    grasp: np.ndarray
+    after: tuple
+
+
 class LateMemory:
     """A memory that comes in while a decision is being planned: the lookahead's, when the
     image came before it was done (see `mog_drake.systems.planner.PlannerSystem`). ``poll``
@@ -173,11 +190,12 @@ class PickDecision:
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
     remembered: int = 0  # groups not planned again: their failure was remembered
-    remembered_pushes: int = 0  # push-mog: pushes not simulated again: they did not pay before
+    # push-mog: pushes not simulated again: they did not pay before, or the lookahead's paid
+    remembered_pushes: int = 0
     merged: bool = False  # a late memory (``late``) came in and was used from some group on
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
-    failures: tuple[FailedGroup | FailedPush, ...] = ()
+    failures: tuple[FailedGroup | FailedPush | PaidPush, ...] = ()
     # push-mog: the push to make (`mog_drake.geometry.push.Push`); ``group`` is then the group
     # it sets up, ``expected`` what the physics check lifted with that group's grasp after the
     # push, and ``grasp`` that grasp if it is to follow at once (planner.push_then_grasp);
@@ -212,7 +230,7 @@ def next_pick(
     spec: PlannerSpec | None = None,
     rng: np.random.Generator | None = None,
     avoid=(),
-    failures: tuple[FailedGroup | FailedPush, ...] | None = None,
+    failures: tuple[FailedGroup | FailedPush | PaidPush, ...] | None = None,
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     adjacent: float = 0.0,
@@ -432,29 +450,77 @@ def lookahead(
     rng=None,
     avoid=(),
     grasp_unrecognised: bool = True,
-) -> tuple[FailedGroup | FailedPush, ...]:
+    pushes_left: int = 0,
+) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
     without the objects ``decision`` grasps, as if they were gone and nothing else had moved,
     plus the grasp it found there. In the next image, each group whose surroundings are
     where they were is replayed from it with no physics (its failure, or its grasp); the
-    groups the grasp disturbed are planned again. No pushes are considered here
-    (``pushes_left`` 0: push-mog plans Alg. 1's grasp alone)."""
+    groups the grasp disturbed are planned again.
+
+    push-mog, with ``pushes_left`` above 0: the pushes are considered too, as the decision
+    would. The pushes that did not pay join the memory (`FailedPush`), and a push that paid
+    with its grasp (`PaidPush`), which the next decision replays with no physics if its
+    objects are where they were: a push decision simulates pushes and their grasps (6-10 s of
+    CPU), which the lookahead does while the arm moves."""
     gone = set(decision.group) | set(decision.expected)
     rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
     if len(rest) == 0:
         return ()
-    ahead = next_pick(rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=0)
+    ahead = next_pick(
+        rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=pushes_left
+    )
     memory = list(ahead.failures)
-    found = ahead.plans[-1] if ahead.plans else None
+    found = next((r for r in reversed(ahead.plans) if r.found), None)
     if (
-        ahead.status == "grasp"
+        ahead.status in ("grasp", "push")
         and not (ahead.partial or ahead.unrecognised)
         and found is not None
-        and found.found
+        and (ahead.status == "push" or found is ahead.plans[-1])
     ):
         memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
+    if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
+        memory.insert(0, paid)
     return tuple(memory[:MEMORY_SIZE])
+
+
+def _paid_push(before, d: PickDecision, gripper) -> PaidPush | None:
+    """Push decision ``d`` on ``before`` as a `PaidPush`; None if its grasp does not follow at
+    once (nothing to replay) or the simulated push moved an object beyond its group's reach
+    (its replay would miss that)."""
+    if d.grasp is None or d.after is None or len(d.after.objects) != len(before.objects):
+        return None
+    around = _around(before, d.group, gripper)
+    inside = {i for i, _, _ in around}
+    for i in range(len(before.objects)):
+        if i not in inside:
+            if np.abs(before.polygon(i) - d.after.polygon(i)).max() > MEMORY_TOL:
+                return None
+    after = tuple((i, d.after.objects[i]) for i in sorted(inside))
+    return PaidPush(d.push, tuple(d.group), around, tuple(d.expected), np.asarray(d.grasp), after)
+
+
+def _replay_push(known, p: Push, group, around, scene, avoid):
+    """The remembered `PaidPush` of push ``p`` of ``group`` (same objects, each where it
+    was) in ``scene``'s ids: (its entry, the push, what its grasp lifted, the grasp, the table
+    it leaves); None if there is none, or its grasp repeats one to avoid."""
+    for f in known:
+        if len(f.group) != len(group) or (ids := _match(f.around, around)) is None:
+            continue
+        if ids.get(f.push.target) != p.target or ids.get(f.push.toward) != p.toward:
+            continue
+        if sorted(ids.get(i, -1) for i in f.group) != sorted(group):
+            continue
+        if repeats([f.grasp], avoid)[0]:
+            return None
+        objects = list(scene.objects)
+        for i, o in f.after:
+            objects[ids[i]] = o
+        lifted = tuple(ids[i] for i in f.lifted if i in ids)
+        push = replace(f.push, target=p.target, toward=p.toward)
+        return f, push, lifted, f.grasp, replace(scene, objects=objects)
+    return None
 
 
 def _consider_pushes(
@@ -477,7 +543,9 @@ def _consider_pushes(
     ``memory`` (the previous decision's, with remember_failures; None: off): a push that did
     not pay before (`FailedPush`), whose surroundings are where they were, is not simulated
     again and does not count against ``push_checks``: the next candidate is simulated
-    instead. Pushes that do not pay now are added to ``d.failures``."""
+    instead. Pushes that do not pay now are added to ``d.failures``. A push the lookahead
+    found to pay (`PaidPush`), whose objects are where they were, is taken with its grasp and
+    nothing is simulated."""
     t0 = time.perf_counter()
     verifier = planner.verifier
     if not hasattr(verifier, "push"):
@@ -500,6 +568,16 @@ def _consider_pushes(
     options.sort(key=lambda o: o[:2])
     best, checks, simulated, failed = None, 0, 0, []
     known = [f for f in memory or () if isinstance(f, FailedPush)]
+    paid = [f for f in memory or () if isinstance(f, PaidPush)]
+    for _, _, p, group in options if paid else ():  # the lookahead's push, if it stands
+        hit = _replay_push(paid, p, group, _around(scene, group, planner.gripper), scene, avoid)
+        if hit is not None and len(hit[2]) / (tp + push_duration(hit[1], spec.push_speed) + tg) > n_now / tg:
+            used, push, lifted, grasp, after = hit
+            best = (push, lifted, group, grasp, after)
+            d.remembered_pushes += 1
+            d.failures = tuple(f for f in d.failures if f is not used)
+            options = []  # nothing to simulate
+            break
     quick = copy.copy(planner)  # the grasps a push sets up: PUSH_GRASP_CHECKS checks each
     quick.config = replace(planner.config, max_physics=PUSH_GRASP_CHECKS)
     for _, _, p, group in options:

@@ -70,14 +70,10 @@ class Job:
         info=None,
         clock: str = "wall",
         started: dict | None = None,
-        after: "Job | None" = None,
     ):
         self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
         self.t_submit, self.clock = t_submit, clock
         self._started = started if started is not None else {}
-        # A job this one waits for before it starts (its result is this one's input): this
-        # one's latency counts from when that one's result became visible.
-        self.after = after
 
     def __copy__(self):
         return self
@@ -86,31 +82,24 @@ class Job:
         return self
 
     def elapsed(self) -> float:
-        """Time the job has run so far on its clock (s): wall time since it was submitted (or
-        since what it waited for was done), or its thread's CPU time since it started."""
+        """Time the job has run so far on its clock (s): wall time since it was submitted, or
+        its thread's CPU time since it started."""
         if self.clock == "wall":
-            return time.perf_counter() - self._started.get("t0", self.t_submit)
+            return time.perf_counter() - self.t_submit
         if "clock_id" not in self._started:
             return 0.0
         return time.clock_gettime(self._started["clock_id"]) - self._started["cpu0"]
 
     def t_visible(self, latency: float | None) -> float:
-        """The simulated time its result became visible (it must be visible): its start, the
-        request or what it waited for becoming visible, plus its latency."""
-        start = self.t_request if self.after is None else max(self.t_request, self.after.t_visible(latency))
-        return start + (latency if latency is not None else self.latency())
+        """The simulated time its result became visible (it must be visible): its request plus
+        its latency."""
+        return self.t_request + (latency if latency is not None else self.latency())
 
     def visible(self, t: float, latency: float | None, block: bool) -> bool:
         """Whether the job's result is visible at simulated time ``t`` (see the module's
-        docstring); ``latency`` None: its measured time on its clock. A job that waits for
-        another is not visible before that one is, and its latency counts from then. A job
-        that raised re-raises here, in the Diagram's thread."""
-        start = self.t_request
-        if self.after is not None:
-            if not self.after.visible(t, latency, block):
-                return False
-            start = max(start, self.after.t_visible(latency))
-        waited = t - start
+        docstring); ``latency`` None: its measured time on its clock. A job that raised
+        re-raises here, in the Diagram's thread."""
+        waited = t - self.t_request
         if latency is not None:
             if waited < latency - 1e-9:
                 return False
@@ -156,31 +145,22 @@ class Worker:
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
-    def submit(self, fn, *args, t_request: float, counter: int, info=None, after: Job | None = None) -> Job:
-        """Runs ``fn(*args)`` on the worker's thread. With ``after`` (a job of another worker),
-        it first waits for that job to finish, idle, and is then called with that job's result
-        (None if it raised) after ``args``; its wall time counts from then (else from the
-        request), its CPU time from its own start."""
+    def submit(self, fn, *args, t_request: float, counter: int, info=None) -> Job:
+        """Runs ``fn(*args)`` on the worker's thread; its wall time counts from the request
+        (queueing included), its CPU time from its own start."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
         started: dict = {}
 
         def run():
-            extra, t0 = (), t_submit  # wall time counts from the request, queueing included
-            if after is not None:
-                try:
-                    extra = (after.result(),)
-                except Exception:  # its own collector reports it; this job goes on without it
-                    extra = (None,)
-                t0 = time.perf_counter()  # ... or from when what it waited for was done
             clock_id = time.pthread_getcpuclockid(threading.get_ident())
             cpu0 = time.clock_gettime(clock_id)
-            started.update(clock_id=clock_id, cpu0=cpu0, t0=t0)
-            out = fn(*args, *extra)
-            return out, time.perf_counter() - t0, time.clock_gettime(clock_id) - cpu0
+            started.update(clock_id=clock_id, cpu0=cpu0)
+            out = fn(*args)
+            return out, time.perf_counter() - t_submit, time.clock_gettime(clock_id) - cpu0
 
-        return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started, after)
+        return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 
     def shutdown(self) -> None:
         """Lets a running job finish, then ends the thread (a job cannot be interrupted)."""

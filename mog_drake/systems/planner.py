@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import time
 from dataclasses import dataclass
 
@@ -38,8 +39,7 @@ class Decision(_Immutable):
     targets: tuple = ()
     misses: tuple = ()
     # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
-    # in while the plan ran: merge_lookahead), "waited" (the plan waited for it:
-    # wait_for_lookahead), "dropped" (never in time), or "" (none ran).
+    # in while the plan ran: merge_lookahead), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
 
 
@@ -141,8 +141,9 @@ class PlannerSystem(LeafSystem):
             # whose grasp follows at once, the table the simulated push left without them.
             chained = d.status == "push" and d.grasp is not None and d.after is not None
             if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
+                # push-mog: it considers pushes too, with the pushes left after this decision.
                 ahead = self._ahead_worker.submit(
-                    lookahead,
+                    functools.partial(lookahead, pushes_left=self._spec.max_pushes - cur.pushes),
                     d.after if chained else scene,
                     d,
                     self._ahead_planner,
@@ -162,18 +163,15 @@ class PlannerSystem(LeafSystem):
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
         ahead = context.get_abstract_state(self._ahead).get_value().job
-        after, late, ahead_use = None, None, ""
+        late, ahead_use = None, ""
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
-            # grasped since). If not, with wait_for_lookahead this plan starts once it is
-            # (`Worker.submit`'s ``after``: its latency counts from then); else it is dropped,
-            # and its thread finishes it unused.
+            # grasped since). If not, with measured latencies it is merged into this plan once
+            # visible; else it is dropped, and its thread finishes it unused.
             ahead_use = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, ahead_use = ahead.result(), "used"
-            elif ahead.counter == cur.counter and self._spec.wait_for_lookahead:
-                after, ahead_use = ahead, "waited"
             elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
                 late, ahead_use = (ahead, t), "late"  # merged into the plan once visible
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
@@ -192,14 +190,10 @@ class PlannerSystem(LeafSystem):
             t_request=t,
             counter=p.counter,
             info=(base, len(p.scene), p.scene, misses, ahead_use),
-            after=after,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, *ahead):
-        # ``ahead``: the lookahead's memory this plan waited for (None if the lookahead failed).
-        if ahead and ahead[0] is not None and failures is not None:
-            failures = ahead[0]
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late):
         source = None if late is None else late_memory(*late, self._clock)
         d = next_pick(
             scene,
