@@ -105,6 +105,29 @@ def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():
     assert ref.config.hold_time == fast.config.hold_time == Scenario().planner.hold_s
 
 
+def test_each_pair_bench_changes_its_one_setting_and_leaves_the_planners_untouched():
+    """`bench bodies`, `table` and `surface`: each side of a pair is the planner's check with
+    that one setting changed, found by its path; the planner's own config is not changed."""
+    from mog_drake.experiments.bench.physics import PAIRS, with_setting
+    from mog_drake.scenario import Scenario
+    from mog_drake.systems.pick import make_planner
+
+    base = make_planner(Scenario()).verifier.config
+    before = repr(base)
+    for what, sides in PAIRS.items():
+        for _, path, value in sides:
+            got = with_setting(base, path, value)
+            node = got
+            for name in path.split("."):
+                node = getattr(node, name)
+            assert node == value, (what, path)
+            assert got.hold_time == base.hold_time and got.physics == base.physics
+    assert repr(base) == before
+    surface = "contact.plant.contact_surface_representation"
+    assert base.contact.plant.contact_surface_representation == "polygon"
+    assert with_setting(base, surface, "triangle").contact.table_collision == base.contact.table_collision
+
+
 def test_every_eval_takes_summary_only(tmp_path, capsys):
     from mog_drake.experiments import conditions
 

@@ -275,16 +275,36 @@ def bench_hold(tables: int = 5, seed: int = 0, window: float = 0.5, progress=Non
     }
 
 
-# The verifier settings `bench bodies` and `bench table` compare: (name, field, value) for
-# the reference check (whose verdicts the planner goes on with) and the other one.
+# The verifier settings `bench bodies`, `bench table` and `bench surface` compare: (name,
+# path of the setting in VerifierConfig, value) for the reference check (whose verdicts the
+# planner goes on with) and the other one.
 PAIRS = {
     "bodies": (("group_bodies", "bodies", "group"), ("grasp_bodies", "bodies", "grasp")),
-    "table": (("halfspace", "table_collision", "halfspace"), ("box", "table_collision", "box")),
+    "table": (
+        ("halfspace", "contact.table_collision", "halfspace"),
+        ("box", "contact.table_collision", "box"),
+    ),
     "surface": (
-        ("polygon", "contact_surface_representation", "polygon"),
-        ("triangle", "contact_surface_representation", "triangle"),
+        ("polygon", "contact.plant.contact_surface_representation", "polygon"),
+        ("triangle", "contact.plant.contact_surface_representation", "triangle"),
     ),
 }
+
+
+def with_setting(config, path: str, value):
+    """A copy of ``config`` with the setting at dotted ``path`` set to ``value``; the
+    configs on the way are copied, never changed (Drake's own are no dataclasses)."""
+    import copy
+    import dataclasses
+
+    head, _, rest = path.partition(".")
+    if rest:
+        value = with_setting(getattr(config, head), rest, value)
+    if dataclasses.is_dataclass(config):
+        return dataclasses.replace(config, **{head: value})
+    new = copy.copy(config)
+    setattr(new, head, value)
+    return new
 
 
 def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict:
@@ -297,28 +317,15 @@ def bench_pair(what: str, tables: int = 5, seed: int = 0, progress=None) -> dict
     per kind (multi, lone, on_side) the checks, successes each way, verdicts that differ
     (success or lifted objects), mean bodies simulated, and mean CPU seconds each way; the CPU
     seconds of all checks; and the differing checks, to replay."""
-    import copy
-    from dataclasses import replace
-
     from mog_drake.scenario import Scenario
     from mog_drake.sim.verifier import DrakeVerifier
     from mog_drake.systems.pick import make_planner
 
-    (a, field_a, value_a), (b, field_b, value_b) = PAIRS[what]
+    (a, path_a, value_a), (b, path_b, value_b) = PAIRS[what]
     planner = make_planner(Scenario())
     base = planner.verifier.config
-
-    def config(field, value):
-        if field == "table_collision":
-            return replace(base, contact=replace(base.contact, table_collision=value))
-        if field == "contact_surface_representation":
-            plant = copy.copy(base.contact.plant)  # Drake's config: not a dataclass
-            plant.contact_surface_representation = value
-            return replace(base, contact=replace(base.contact, plant=plant))
-        return replace(base, **{field: value})
-
-    ref = _Timed(DrakeVerifier(config(field_a, value_a), planner.verifier.gripper))
-    other = _Timed(DrakeVerifier(config(field_b, value_b), planner.verifier.gripper))
+    ref = _Timed(DrakeVerifier(with_setting(base, path_a, value_a), planner.verifier.gripper))
+    other = _Timed(DrakeVerifier(with_setting(base, path_b, value_b), planner.verifier.gripper))
     log = _replay_checks(planner, ref, other, tables, seed, progress)
     rows = []
     for kind in ("multi", "lone", "on_side"):
