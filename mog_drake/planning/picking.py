@@ -190,7 +190,7 @@ class PickDecision:
     planning_time: float = 0.0
     plans: list[PlanResult] = field(default_factory=list)
     remembered: int = 0  # groups not planned again: their failure was remembered
-    # push-mog: pushes not simulated again: they did not pay before, or the lookahead's paid
+    # push-mog: pushes not simulated now: they did not pay before, or the lookahead found them to pay
     remembered_pushes: int = 0
     merged: bool = False  # a late memory (``late``) came in and was used from some group on
     # What to remember for the next decision: failures seen (or replayed) now, then the older
