@@ -472,12 +472,12 @@ def lookahead(
         rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=pushes_left
     )
     memory = list(ahead.failures)
-    found = next((r for r in reversed(ahead.plans) if r.found), None)
+    found = ahead.plans[-1] if ahead.plans else None  # Alg. 1's grasp (a push's too)
     if (
         ahead.status in ("grasp", "push")
         and not (ahead.partial or ahead.unrecognised)
         and found is not None
-        and (ahead.status == "push" or found is ahead.plans[-1])
+        and found.found
     ):
         memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
     if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
@@ -501,16 +501,24 @@ def _paid_push(before, d: PickDecision, gripper) -> PaidPush | None:
     return PaidPush(d.push, tuple(d.group), around, tuple(d.expected), np.asarray(d.grasp), after)
 
 
+def _same_push(target: int, toward: int, f_group, f_around, p: Push, group, around) -> dict[int, int] | None:
+    """Old id -> new id if a remembered push (of ``target`` to ``toward``, setting up
+    ``f_group``, with ``f_around`` around it) is push ``p`` of ``group`` now, every object
+    around it where it was (``around``, now); else None."""
+    if len(f_group) != len(group) or (ids := _match(f_around, around)) is None:
+        return None
+    if ids.get(target) != p.target or ids.get(toward) != p.toward:
+        return None
+    return ids if sorted(ids.get(i, -1) for i in f_group) == sorted(group) else None
+
+
 def _replay_push(known, p: Push, group, around, scene, avoid):
     """The remembered `PaidPush` of push ``p`` of ``group`` (same objects, each where it
     was) in ``scene``'s ids: (its entry, the push, what its grasp lifted, the grasp, the table
     it leaves); None if there is none, or its grasp repeats one to avoid."""
     for f in known:
-        if len(f.group) != len(group) or (ids := _match(f.around, around)) is None:
-            continue
-        if ids.get(f.push.target) != p.target or ids.get(f.push.toward) != p.toward:
-            continue
-        if sorted(ids.get(i, -1) for i in f.group) != sorted(group):
+        ids = _same_push(f.push.target, f.push.toward, f.group, f.around, p, group, around)
+        if ids is None:
             continue
         if repeats([f.grasp], avoid)[0]:
             return None
@@ -628,11 +636,8 @@ def _did_not_pay(known, p, group, around, now_rate: float, push_time: float) -> 
     it was) that would not pay now either: it failed, or what its grasp lifted over
     ``push_time`` does not beat ``now_rate`` (objects per second of the grasp now)."""
     for f in known:
-        if len(f.group) != len(group) or (ids := _match(f.around, around)) is None:
-            continue
-        if ids.get(f.target) == p.target and ids.get(f.toward) == p.toward:
-            if sorted(ids.get(i, -1) for i in f.group) == sorted(group):
-                return f.lifted == 0 or f.lifted / push_time <= now_rate
+        if _same_push(f.target, f.toward, f.group, f.around, p, group, around) is not None:
+            return f.lifted == 0 or f.lifted / push_time <= now_rate
     return False
 
 
