@@ -235,9 +235,9 @@ def test_summary_only_leaves_a_line_being_written_alone(tmp_path):
     assert [json.loads(line)["key"] for line in path.read_text().splitlines()] == ["t0", "t1"]
 
 
-def _picking_record(scene, mode, success, pph, attempts=(), seed=None):
+def _picking_record(scene, mode, success, pph, attempts=(), seed=None, timing=None):
     summary = {k: 1.0 for k in picking_eval.PAIRED}
-    summary.update(success_rate=success, pph=pph)
+    summary.update(success_rate=success, pph=pph, **(timing or {}))
     return {
         "key": f"s{scene}-{mode}",
         "scene": scene,
@@ -281,9 +281,16 @@ def test_two_picking_sweeps_are_compared_table_by_table():
 
 
 def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
+    timed = {"robot_time_s": 80.0, "cycle_time_s": 100.0, "wait_planning_s": 15.0, "wait_perception_s": 5.0}
+    sog_timed = {
+        "robot_time_s": 100.0,
+        "cycle_time_s": 100.0,
+        "wait_planning_s": 0.0,
+        "wait_perception_s": 0.0,
+    }
     results = [
-        _picking_record(0, "sog", 1.0, 500.0),
-        _picking_record(0, "push-mog", 1.0, 800.0),
+        _picking_record(0, "sog", 1.0, 500.0, timing=sog_timed),
+        _picking_record(0, "push-mog", 1.0, 800.0, timing=timed),
         _picking_record(1, "sog", 1.0, 400.0),
         _picking_record(1, "push-mog", 0.9, 700.0),
         _picking_record(2, "sog", 1.0, 450.0),  # push-mog has not run table 2 yet
@@ -293,6 +300,11 @@ def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
     assert doc["tables"] == 2
     assert [t["table"] for t in doc["per_table"]] == [0, 1]
     assert [t["pph_ratio"] for t in doc["per_table"]] == pytest.approx([1.6, 1.75])
+    # Had neither arm waited: table 0's push-mog waited 20 s of its 80 s of robot time (cycle
+    # 100 s), sog 0 s of 100: 800 * 100 / 80 = 1000 PPH against 500, a ratio of 2.0.
+    assert doc["per_table"][0]["wait_pct_push-mog"] == pytest.approx(25.0)
+    assert doc["per_table"][0]["robot_pph_ratio"] == pytest.approx(2.0)
+    assert doc["per_table"][1]["robot_pph_ratio"] == pytest.approx(1.75)  # cycle = robot time
     pph = next(r for r in doc["rows"] if r["metric"] == "pph")
     assert pph["mode"] == "push-mog vs sog" and pph["b_minus_a"] == pytest.approx(300.0)
     assert pph["a"] == pytest.approx(450.0) and pph["b"] == pytest.approx(750.0)

@@ -245,7 +245,9 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
 def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
     """Mode B against mode A on the tables of one sweep that ran both (`compare`'s rows,
     labelled "B vs A"), and table by table: PPH and objects per successful grasp of each,
-    and the PPH ratio B / A."""
+    the PPH ratio B / A, B's wait for compute as a share of its robot time, and the PPH ratio
+    had neither arm waited (``robot_pph_ratio``: objects in the bin per second of robot time,
+    B / A), the ratio's ceiling from the motions alone."""
 
     def side(mode):
         label = f"{b_mode} vs {a_mode}"
@@ -265,6 +267,8 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
                 f"pph_{a_mode}": sa["pph"],
                 f"pph_{b_mode}": sb["pph"],
                 "pph_ratio": sb["pph"] / sa["pph"] if sa["pph"] else float("nan"),
+                f"wait_pct_{b_mode}": _wait_pct(sb),
+                "robot_pph_ratio": _robot_pph(sb) / _robot_pph(sa) if _robot_pph(sa) else float("nan"),
                 f"per_grasp_{a_mode}": sa["objects_per_success"],
                 f"per_grasp_{b_mode}": sb["objects_per_success"],
                 f"picked_{b_mode}": sb["picked_pct"],
@@ -272,6 +276,23 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
             }
         )
     return {**paired, "per_table": tables}
+
+
+def _wait_pct(summary: dict) -> float:
+    """The arm's wait for compute as a share of its robot time (%); nan if not recorded."""
+    try:
+        return 100.0 * (summary["wait_perception_s"] + summary["wait_planning_s"]) / summary["robot_time_s"]
+    except (KeyError, ZeroDivisionError):
+        return float("nan")
+
+
+def _robot_pph(summary: dict) -> float:
+    """Objects in the bin per hour of robot time: the PPH had the arm never waited; nan if
+    not recorded."""
+    try:
+        return summary["pph"] * summary["cycle_time_s"] / summary["robot_time_s"]
+    except (KeyError, ZeroDivisionError):
+        return float("nan")
 
 
 def compare_text(doc: dict) -> str:
