@@ -328,21 +328,35 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.03 and p[2] < 0.01
 
 
-def test_a_late_lookahead_is_merged_once_visible_in_simulated_time():
-    """The lookahead (0.3 s of CPU from t = 0) is visible at 0.3. A plan requested at 0.1 may
-    use it once its own CPU time brings it to 0.3: not at its start, though the lookahead
-    has long finished on the wall clock, but after 0.2 s of its own."""
-    from mog_drake.systems.planner import late_memory
+def test_the_lookaheads_verdicts_are_visible_at_its_cpu_time_and_a_wait_is_latency():
+    """The lookahead (requested at t = 0) posts a verdict after 0.3 s of its thread's CPU: it
+    is visible at 0.3. A plan requested at 0.1 sees it once its own CPU time brings it to 0.3:
+    not at its start, though it was posted long before on the wall clock, but after 0.2 s of
+    its own. A plan's wait for the lookahead is latency: visible at its request plus its CPU
+    time plus its wait."""
+    from mog_drake.planning.board import Board, BoardReader
 
     a = Worker("ahead", "cpu")
+    board = Board(0.0, "cpu")
+
+    def lookahead():
+        board.start()
+        _spin(0.3)
+        board.post("verdict")
+        board.finish()
+
     try:
-        ahead = a.submit(_spin_then, 0.3, ("memory",), t_request=0.0, counter=1)
-        ahead.future.result()
-        late = late_memory(ahead, 0.1, "cpu")
-        assert late.get() is None
+        a.submit(lookahead, t_request=0.0, counter=1).future.result()
+        late = BoardReader(board, 0.1, "cpu")
+        assert late.new() == []
         _spin(0.1)
-        assert late.get() is None
+        assert late.new() == []
         _spin(0.12)
-        assert late.get() == ("memory",)
+        assert late.new() == ["verdict"] and late.got == ["verdict"]
+        plan = a.submit(_spin_then, 0.2, "decision", t_request=1.0, counter=2, waited=lambda out: 0.5)
+        assert plan.result() == "decision" and plan.waited() == 0.5
+        assert plan.latency() == pytest.approx(plan.cpu_time() + 0.5)
+        assert not plan.visible(1.0 + plan.cpu_time() + 0.4, None, block=True)
+        assert plan.visible(1.0 + plan.cpu_time() + 0.5, None, block=True)
     finally:
         a.shutdown()

@@ -1,4 +1,5 @@
 import math
+import time
 
 import numpy as np
 import pytest
@@ -618,26 +619,92 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
     assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
 
 
-def test_a_late_memory_replays_the_groups_still_to_plan():
-    """Three lone objects, no grasp for any. A decision whose late memory (the lookahead's
-    verdicts) comes in after its first group plans that one and replays the other two."""
-    from mog_drake.planning.picking import LateMemory, next_pick
+def test_a_decision_reads_the_lookaheads_board_at_its_own_simulated_time():
+    """Three lone objects, no grasp for any (one physics check each, 1 s of the decision's
+    clock per check). The lookahead, requested at t = 0, is planning the first group from 0 to
+    0.5 s, where it posts that group's verdict, then posts the third group's at 1.2 s and the
+    second's at 5 s. A decision requested at t = 0.1 does not plan the first group a second
+    time: it waits for its verdict until 0.5 (0.4 s). It plans the second group itself (at
+    1.5 s that verdict is not visible yet), by then sees the third's and replays it. However
+    the wall clock interleaves the two threads, simulated time decides the same."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import next_pick
 
     scene = make_scene(
         [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
     )
     spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
     v = FakeVerifier()
-    known = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, failures=()).failures
-    assert len(v.asked) == 3 and len(known) == 3
-    polls = []
+    alone = next_pick(scene, GraspPlanner(v, cfg), spec, failures=())
+    known = alone.failures
+    assert len(v.asked) == 3 and len(known) == 3 and alone.status == "no_grasp"
+    for wall_delay in (0.0, 0.2):  # the lookahead's posts before, then after, the decision looks
+        poster_time = [0.0]
+        board = Board(0.0, clock=lambda poster_time=poster_time: poster_time[0])
+        board.start()
+        board.claim(known[0].group, known[0].around)
 
-    def poll():
-        polls.append(1)
-        return None if len(polls) == 1 else known
+        def lookahead_goes_on(delay=wall_delay, board=board, poster_time=poster_time):
+            time.sleep(delay)
+            for stamp, entry in ((0.5, known[0]), (1.2, known[2]), (5.0, known[1])):
+                poster_time[0] = stamp
+                board.post(entry)
+            board.finish()
 
+        poster = threading.Thread(target=lookahead_goes_on)
+        poster.start()
+        v = FakeVerifier()
+        late = BoardReader(board, 0.1, clock=lambda v=v: float(len(v.asked)))
+        d = next_pick(scene, GraspPlanner(v, cfg), spec, failures=(), late=late)
+        poster.join()
+        assert d.status == alone.status and d.merged
+        assert len(v.asked) == 1 and d.remembered == 2  # the second group alone was simulated
+        assert d.waited == pytest.approx(0.4) and late.t() == pytest.approx(1.5)
+        # Its memory holds each group once, as the decision alone would.
+        assert sorted(f.group for f in d.failures) == sorted(f.group for f in known)
+    # A board nobody claims on leaves the decision as it was: every group simulated, no wait.
+    board = Board(0.0, clock=lambda: 0.0)
+    board.start()
+    board.finish()
     v = FakeVerifier()
-    d = next_pick(
-        scene, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, failures=(), late=LateMemory(poll)
+    d = next_pick(scene, GraspPlanner(v, cfg), spec, failures=(), late=BoardReader(board, 0.1, lambda: 0.0))
+    assert len(v.asked) == 3 and d.waited == 0.0 and not d.merged
+
+
+def test_the_lookahead_writes_each_group_it_simulates_and_each_verdict_on_its_board():
+    """The lookahead, after a grasp of the first of three lone objects, simulates the other
+    two (1 s of its clock each, no grasp for either). Its board shows each group claimed while
+    it is simulated, each verdict from the end of its simulation, and the memory it returns,
+    each entry once."""
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import PickDecision, lookahead
+
+    scene = make_scene(
+        [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
     )
-    assert len(v.asked) == 1 and d.merged and d.remembered == 2 and d.status == "no_grasp"
+    v = FakeVerifier()
+    board = Board(0.0, clock=lambda: float(len(v.asked)))
+    decision = PickDecision("grasp", group=(0,), expected=(0,))
+    spec = PlannerSpec(last_resort=False)
+    memory = lookahead(
+        scene, decision, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, board=board
+    )
+    assert len(v.asked) == 2 and len(memory) == 2
+    now = [0.0]
+    reader = BoardReader(board, 0.0, clock=lambda: now[0])
+    seen = []
+    for t in (0.5, 1.5, 2.5):
+        now[0] = t
+        claim = reader.claimed()
+        seen.append(None if claim is None else claim[0])
+        reader.new()
+        assert len(reader.got) == int(t)  # each verdict visible from the end of its check
+    # Ids of the table without object 0: the two groups in turn, then nothing.
+    assert seen[0] is not None and seen[1] is not None and seen[0] != seen[1] and seen[2] is None
+    assert sorted(seen[:2]) == [(0,), (1,)]
+    assert len(reader.got) == len(memory) and {id(e) for e in reader.got} == {id(e) for e in memory}
+    reader.wait()  # nothing is claimed at 2.5: no wait
+    assert reader.waited == 0.0

@@ -81,9 +81,10 @@ class PlannerSpec:
     # push-mog it considers pushes too: a push that paid is replayed, with its grasp.
     lookahead: bool = True
     # When the next image comes before the lookahead is done (measured latencies), its plan
-    # starts at once and takes the lookahead's verdicts in, for the groups it has still to
-    # plan, as soon as they are visible in simulated time (before: the lookahead was dropped).
-    # It never simulates more than a plan without them. (Waiting for the lookahead instead was
+    # starts at once and reads the lookahead's board (mog_drake.planning.board): the verdicts
+    # visible by then in simulated time are replayed, and a group the lookahead is simulating
+    # then is waited for, not simulated twice (off: the lookahead is dropped). It never
+    # simulates more than a plan without them. (Waiting for the whole lookahead instead was
     # tried and measured worse: docs/experiments.md, session 18.)
     merge_lookahead: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the

@@ -24,6 +24,7 @@ from mog_drake.geometry import objects_in_reach, ranked_groups
 from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP, Push, push_candidates, push_duration
+from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.planner import GraspPlanner, PlanResult, repeats
 from mog_drake.planning.protocol import GraspResult
@@ -98,21 +99,6 @@ class PaidPush:
     after: tuple
 
 
-class LateMemory:
-    """A memory that comes in while a decision is being planned: the lookahead's, when the
-    image came before it was done (see `mog_drake.systems.planner.PlannerSystem`). ``poll``
-    returns it once the decision may use it (it is visible in simulated time by this point
-    of the decision), else None; `get` asks until it has it."""
-
-    def __init__(self, poll):
-        self._poll, self.memory = poll, None
-
-    def get(self):
-        if self.memory is None:
-            self.memory = self._poll()
-        return self.memory
-
-
 def _around(scene, group, gripper) -> tuple:
     ids = objects_in_reach(scene, group, gripper, MEMORY_REACH_MARGIN)
     return tuple((i, scene.objects[i].shape, scene.polygon(i)) for i in ids)
@@ -136,6 +122,25 @@ def _match(old: tuple, new: tuple, tol: float = MEMORY_TOL) -> dict[int, int] | 
         else:
             return None
     return ids
+
+
+def _same_group(f_group, f_around, group, around) -> dict[int, int] | None:
+    """Old id -> new id if ``f_group`` with ``f_around`` around it (as `_around` gives) is
+    ``group`` now, every object around it where it was (``around``, now); else None."""
+    if len(f_group) != len(group) or (ids := _match(f_around, around)) is None:
+        return None
+    return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
+
+
+def _recall(pending: list, group, around, avoid) -> tuple[bool, PlanResult | None]:
+    """The first remembered verdict in ``pending`` of ``group`` with ``around`` (taken out of
+    ``pending``): (True, its replay), or (True, None) when its grasp repeats one to avoid;
+    (False, None) if none is remembered."""
+    for k, f in enumerate(pending):
+        if isinstance(f, FailedGroup) and (ids := _same_group(f.group, f.around, group, around)) is not None:
+            del pending[k]
+            return True, _replay(f, ids, group, avoid)
+    return False, None
 
 
 def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=()) -> PlanResult | None:
@@ -192,7 +197,12 @@ class PickDecision:
     remembered: int = 0  # groups not planned again: their failure was remembered
     # push-mog: pushes not simulated now: they did not pay before, or the lookahead found them to pay
     remembered_pushes: int = 0
-    merged: bool = False  # a late memory (``late``) came in and was used from some group on
+    # The lookahead's verdicts came in while this decision was planned (``late``); the
+    # simulated time it waited for them beyond its own clock (s).
+    merged: bool = False
+    waited: float = 0.0
+    # The entry of the grasp found, as posted on a board (``post``; see `lookahead`).
+    found_entry: FailedGroup | None = None
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup | FailedPush | PaidPush, ...] = ()
@@ -221,6 +231,7 @@ class PickDecision:
             "remembered": self.remembered,
             "remembered_pushes": self.remembered_pushes,
             "merged": self.merged,
+            "waited": self.waited,
         }
 
 
@@ -235,7 +246,8 @@ def next_pick(
     pushes_left: int = 0,
     adjacent: float = 0.0,
     exclude=(),
-    late: LateMemory | None = None,
+    late: BoardReader | None = None,
+    post: Board | None = None,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``.
 
@@ -280,9 +292,13 @@ def next_pick(
     exclude: objects given up on (`tally_misses`): no group holding one is planned; when they
     are all that is left, the status is "gave_up".
 
-    late (with ``failures``; an extension): a memory that may come in while this decision is
-    planned (`LateMemory`: the lookahead's, not done when the image came). Before each group
-    it is asked for; once in, its verdicts join ``failures``' for the groups still to plan.
+    late (with ``failures``; an extension): the board of a lookahead that was not done when
+    the image came (`mog_drake.planning.board`). Before each group, the verdicts it has posted
+    by then (in simulated time) join ``failures``' for the groups still to plan; a group it
+    is planning then is not planned here: the decision waits for its verdict.
+
+    post (with ``failures``; an extension): the board this plan writes on (the lookahead's):
+    each group it simulates (its claim), then each verdict.
 
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
     that much CPU time on the decision and holds a verified partial lift, no more groups are
@@ -301,6 +317,7 @@ def next_pick(
             adjacent=ADJACENT_GAP,
             exclude=exclude,
             late=late,
+            post=post,
         )
         if (
             pushes_left > 0
@@ -309,9 +326,12 @@ def next_pick(
             and d.status in ("grasp", "no_grasp")
         ):
             memory = failures
-            if failures is not None and late is not None and late.get():
-                memory = tuple(failures) + tuple(late.memory)
+            if failures is not None and late is not None:
+                d.merged |= bool(late.new())
+                memory = tuple(failures) + tuple(late.got)
             _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
+            if late is not None:
+                d.waited = late.waited
         return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
@@ -354,35 +374,44 @@ def next_pick(
             break
         if best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
-        if failures is not None and late is not None and not decision.merged and late.get():
-            have = {id(f) for f in pending}
-            pending += [f for f in late.memory if id(f) not in have]
+        if failures is not None and late is not None and (got := late.new()):
+            pending += got
             decision.merged = True
         res = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            for k, f in enumerate(pending):
-                if (
-                    isinstance(f, FailedGroup)
-                    and len(f.group) == len(group)
-                    and (ids := _match(f.around, around)) is not None
-                ):
-                    if set(ids[i] for i in f.group) == set(group):
-                        res = _replay(f, ids, group, avoid)
-                        del pending[k]
-                        if res is not None:
-                            decision.remembered += 1
-                        break
+            met, res = _recall(pending, group, around, avoid)
+            # The lookahead is planning this group: wait for its verdict, not plan it twice.
+            while (
+                not met
+                and late is not None
+                and (c := late.claimed())
+                and _same_group(*c, group, around) is not None
+            ):
+                late.wait()
+                if got := late.new():
+                    pending += got
+                    decision.merged = True
+                met, res = _recall(pending, group, around, avoid)
+            if res is not None:
+                decision.remembered += 1
         if res is None:
+            if post is not None and failures is not None:
+                post.claim(group, around)
             res = planner.plan(
                 scene, group, rng=rng, avoid=avoid, deadline=deadline, fallback=best is not None
             )
         if failures is not None and not res.found and not res.cut_short:
             seen.append(FailedGroup(tuple(res.group), around, res))
+            if post is not None:
+                post.post(seen[-1])
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested
         if res.found:
+            if post is not None and failures is not None:
+                decision.found_entry = FailedGroup(tuple(res.group), around, res)
+                post.post(decision.found_entry)
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
             decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
             break
@@ -395,6 +424,8 @@ def next_pick(
         _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
+    if late is not None:
+        decision.waited = late.waited
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
@@ -451,6 +482,7 @@ def lookahead(
     avoid=(),
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
+    board: Board | None = None,
 ) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
@@ -463,13 +495,41 @@ def lookahead(
     would. The pushes that did not pay join the memory (`FailedPush`), and a push that paid
     with its grasp (`PaidPush`), which the next decision replays with no physics if its
     objects are where they were: a push decision simulates pushes and their grasps (6-10 s of
-    CPU), which the lookahead does while the arm moves."""
+    CPU), which the lookahead does while the arm moves.
+
+    board: where the next decision, if its image comes first, reads this plan as it goes (see
+    `mog_drake.planning.board`): each group as it is simulated, each verdict, and at the end
+    the rest of the memory. It is finished however this returns."""
+    if board is not None:
+        board.start()
+    try:
+        memory = _lookahead(
+            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board
+        )
+        if board is not None:
+            for entry in memory:
+                board.post(entry)  # those posted already are not posted twice
+        return memory
+    finally:
+        if board is not None:
+            board.finish()
+
+
+def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board):
     gone = set(decision.group) | set(decision.expected)
     rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
     if len(rest) == 0:
         return ()
     ahead = next_pick(
-        rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=pushes_left
+        rest,
+        planner,
+        spec,
+        rng,
+        avoid,
+        decision.failures,
+        grasp_unrecognised,
+        pushes_left=pushes_left,
+        post=board,
     )
     memory = list(ahead.failures)
     found = ahead.plans[-1] if ahead.plans else None  # Alg. 1's grasp (a push's too)
@@ -479,7 +539,10 @@ def lookahead(
         and found is not None
         and found.found
     ):
-        memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
+        entry = ahead.found_entry
+        if entry is None or entry.result is not found:
+            entry = FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found)
+        memory.insert(0, entry)
     if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
         memory.insert(0, paid)
     return tuple(memory[:MEMORY_SIZE])
@@ -505,11 +568,10 @@ def _same_push(target: int, toward: int, f_group, f_around, p: Push, group, arou
     """Old id -> new id if a remembered push (of ``target`` to ``toward``, setting up
     ``f_group``, with ``f_around`` around it) is push ``p`` of ``group`` now, every object
     around it where it was (``around``, now); else None."""
-    if len(f_group) != len(group) or (ids := _match(f_around, around)) is None:
+    ids = _same_group(f_group, f_around, group, around)
+    if ids is None or ids.get(target) != p.target or ids.get(toward) != p.toward:
         return None
-    if ids.get(target) != p.target or ids.get(toward) != p.toward:
-        return None
-    return ids if sorted(ids.get(i, -1) for i in f_group) == sorted(group) else None
+    return ids
 
 
 def _replay_push(known, p: Push, group, around, scene, avoid):

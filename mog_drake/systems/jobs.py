@@ -130,9 +130,15 @@ class Job:
         """The CPU time of the job's thread while it ran (s); it must be done."""
         return self.future.result()[2]
 
+    def waited(self) -> float:
+        """Simulated time the job spent waiting for another job's results, beyond its own
+        clock (s; see `Worker.submit`'s ``waited``); it must be done."""
+        return self.future.result()[3]
+
     def latency(self) -> float:
-        """The job's measured latency on its clock (s); it must be done."""
-        return self.cpu_time() if self.clock == "cpu" else self.wall_time()
+        """The job's measured latency on its clock, its waits included (s); it must be
+        done."""
+        return (self.cpu_time() if self.clock == "cpu" else self.wall_time()) + self.waited()
 
     def result(self):
         return self.future.result()[0]
@@ -145,9 +151,12 @@ class Worker:
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
-    def submit(self, fn, *args, t_request: float, counter: int, info=None) -> Job:
+    def submit(self, fn, *args, t_request: float, counter: int, info=None, waited=None) -> Job:
         """Runs ``fn(*args)`` on the worker's thread; its wall time counts from the request
-        (queueing included), its CPU time from its own start."""
+        (queueing included), its CPU time from its own start. ``waited(result)``: the
+        simulated time the job waited for another's results beyond its own clock (a plan that
+        waited for the lookahead's verdicts: `mog_drake.planning.board`), added to its
+        latency."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
@@ -158,7 +167,8 @@ class Worker:
             cpu0 = time.clock_gettime(clock_id)
             started.update(clock_id=clock_id, cpu0=cpu0)
             out = fn(*args)
-            return out, time.perf_counter() - t_submit, time.clock_gettime(clock_id) - cpu0
+            wall, cpu = time.perf_counter() - t_submit, time.clock_gettime(clock_id) - cpu0
+            return out, wall, cpu, waited(out) if waited is not None else 0.0
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

@@ -6,15 +6,15 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
-import time
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import LateMemory, PickDecision, lookahead, next_pick, tally_misses
+from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -142,8 +142,10 @@ class PlannerSystem(LeafSystem):
             chained = d.status == "push" and d.grasp is not None and d.after is not None
             if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
                 # push-mog: it considers pushes too, with the pushes left after this decision.
+                # It writes on a board as it goes, for the next plan if that starts first.
+                board = Board(t, self._clock)
                 ahead = self._ahead_worker.submit(
-                    functools.partial(lookahead, pushes_left=self._spec.max_pushes - cur.pushes),
+                    functools.partial(lookahead, pushes_left=self._spec.max_pushes - cur.pushes, board=board),
                     d.after if chained else scene,
                     d,
                     self._ahead_planner,
@@ -152,6 +154,7 @@ class PlannerSystem(LeafSystem):
                     cur.recent,
                     t_request=t,
                     counter=job_counter,
+                    info=board,
                 )
                 state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
         p = self._scene.Eval(context)
@@ -167,13 +170,15 @@ class PlannerSystem(LeafSystem):
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
-            # grasped since). If not, with measured latencies it is merged into this plan once
-            # visible; else it is dropped, and its thread finishes it unused.
+            # grasped since). If not, with measured latencies this plan reads its board: its
+            # verdicts as they become visible, and it waits for those of the groups it is
+            # planning (`mog_drake.planning.board`); else it is dropped, and its thread
+            # finishes it unused.
             ahead_use = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, ahead_use = ahead.result(), "used"
             elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
-                late, ahead_use = (ahead, t), "late"  # merged into the plan once visible
+                late, ahead_use = (ahead.info, t), "late"  # the board, the plan's request
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
@@ -190,11 +195,12 @@ class PlannerSystem(LeafSystem):
             t_request=t,
             counter=p.counter,
             info=(base, len(p.scene), p.scene, misses, ahead_use),
+            waited=lambda out: out[0].waited,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
     def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late):
-        source = None if late is None else late_memory(*late, self._clock)
+        source = None if late is None else BoardReader(*late, self._clock)
         d = next_pick(
             scene,
             self._planner,
@@ -211,26 +217,6 @@ class PlannerSystem(LeafSystem):
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
-
-
-def late_memory(job, t_request: float, clock: str) -> LateMemory:
-    """The memory of lookahead ``job`` for a plan requested at simulated time ``t_request``
-    and starting now on this thread: it may be used once the job is done and its result
-    visible by that point of the plan, the request plus the plan's time so far on ``clock``
-    ("cpu": this thread's CPU time, "wall")."""
-    now = time.thread_time if clock == "cpu" else time.perf_counter
-    c0 = now()
-
-    def poll():
-        if not job.future.done():
-            return None
-        try:
-            memory = job.result()
-        except Exception:  # the lookahead failed: plan without it
-            return ()
-        return memory if job.t_visible(None) <= t_request + now() - c0 + 1e-9 else None
-
-    return LateMemory(poll)
 
 
 def _targets(d: PickDecision, scene) -> tuple:

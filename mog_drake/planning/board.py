@@ -1,0 +1,155 @@
+"""Verdicts one planning thread shares with another while both run, each visible at its own
+simulated time (Drake-free).
+
+The lookahead plans the next decision on the table as it will be without the objects the arm
+is grasping (`mog_drake.planning.picking.lookahead`). When the next image comes before it is
+done, the decision planned from that image (on the planner's thread) and the lookahead (on its
+own) run side by side over largely the same groups. The lookahead writes on a `Board`, as it
+goes: the group it is planning now (its claim) and each verdict once it has one. The decision
+reads it through a `BoardReader`:
+
+- a verdict is replayed with no physics (when its group's surroundings are where they were)
+  once it is visible: posted no later, in simulated time, than the decision has got to;
+- a group the lookahead is planning at that point is not planned a second time: the decision
+  waits for its verdict, and that wait is simulated time it spends (``waited``).
+
+Simulated time: the lookahead's point is its request plus the time it has run on its clock
+(its thread's CPU time, or the wall clock), the decision's its request plus the time it has
+run on its own clock plus its waits. Nothing is seen before that point: a verdict or claim
+posted later on the wall clock than the decision looks, though early enough in simulated
+time, is missed, and the decision plans that group itself. So reading the board never gives
+a decision anything it could not have had on a real cell, where the two run on two cores.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+
+def thread_clock(clock: str) -> Callable[[], float]:
+    """The clock a job's time is measured on: "cpu" (the calling thread's CPU time) or
+    "wall"."""
+    return time.thread_time if clock == "cpu" else time.perf_counter
+
+
+class Board:
+    """What a planning thread (the poster) shares while it runs: its claims (the group it is
+    planning, from when to when) and its verdicts, each stamped with the simulated time it
+    happened: ``t_request`` plus the poster's time on ``clock`` since `start` ("cpu", "wall",
+    or a function, for tests). The poster calls `start`, then `claim` / `post`, then `finish`;
+    any other thread reads it through a `BoardReader`."""
+
+    def __init__(self, t_request: float, clock: str | Callable[[], float] = "wall"):
+        self.t_request = t_request
+        self._clock = clock
+        self._now: Callable[[], float] | None = None
+        self._c0 = 0.0
+        self._cond = threading.Condition()
+        self._entries: list[tuple[float, object]] = []  # (stamp, verdict), in stamp order
+        # (from, to or None while open, group, around): what the poster planned when.
+        self._claims: list[list] = []
+        self._done: float | None = None  # stamp of `finish`
+        self._posted: set[int] = set()  # ids of the entries posted
+        if clock == "wall":  # a wall-clock latency counts from the request (queueing included)
+            self.start()
+
+    def start(self) -> None:
+        """On the poster's thread, as it starts: its clock starts here ("wall": at the
+        request)."""
+        if self._now is None:
+            self._now = self._clock if callable(self._clock) else thread_clock(self._clock)
+            self._c0 = self._now()
+
+    def stamp(self) -> float:
+        """The poster's simulated time now (on its own thread)."""
+        self.start()
+        return self.t_request + self._now() - self._c0
+
+    def claim(self, group, around) -> None:
+        """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
+        with self._cond:
+            s = self.stamp()
+            self._close(s)
+            self._claims.append([s, None, tuple(group), around])
+            self._cond.notify_all()
+
+    def post(self, entry) -> None:
+        """A verdict (a memory entry of `picking.next_pick`); it ends the open claim. An entry
+        posted before (the same object) is not posted again."""
+        with self._cond:
+            if id(entry) in self._posted:
+                return
+            self._posted.add(id(entry))
+            s = self.stamp()
+            self._close(s)
+            self._entries.append((s, entry))
+            self._cond.notify_all()
+
+    def finish(self) -> None:
+        """The poster is done: nothing more will be claimed or posted."""
+        with self._cond:
+            s = self.stamp()
+            self._close(s)
+            self._done = s
+            self._cond.notify_all()
+
+    def _close(self, s: float) -> None:
+        if self._claims and self._claims[-1][1] is None:
+            self._claims[-1][1] = s
+
+
+class BoardReader:
+    """A plan's view of ``board``: the plan was requested at simulated time ``t_request`` and
+    starts now, on this thread, timed on ``clock`` (as `Board`). ``waited``: simulated time
+    it has spent waiting for the poster, beyond its own clock."""
+
+    def __init__(self, board: Board, t_request: float, clock: str | Callable[[], float] = "wall"):
+        self.board = board
+        self.t_request = t_request
+        self._now = clock if callable(clock) else thread_clock(clock)
+        self._c0 = self._now()
+        self.waited = 0.0
+        self.got: list = []  # every verdict `new` returned, in order
+        self._seen = 0
+
+    def t(self) -> float:
+        """The plan's simulated time now."""
+        return self.t_request + self._now() - self._c0 + self.waited
+
+    def new(self) -> list:
+        """The verdicts visible by now that were not returned before, in the poster's order."""
+        t = self.t()
+        with self.board._cond:
+            entries = self.board._entries
+            k = self._seen
+            while k < len(entries) and entries[k][0] <= t + 1e-9:
+                k += 1
+            out = [e for _, e in entries[self._seen : k]]
+            self._seen = k
+        self.got += out
+        return out
+
+    def claimed(self) -> tuple | None:
+        """(group, around) the poster is planning at this plan's simulated time, as far as is
+        known on the wall clock now; None if nothing is."""
+        t = self.t()
+        with self.board._cond:
+            for s, e, group, around in reversed(self.board._claims):
+                if s <= t + 1e-9:
+                    return (group, around) if e is None or e > t + 1e-9 else None
+        return None
+
+    def wait(self) -> None:
+        """Waits (on the wall clock) until the claim open at this plan's simulated time ends,
+        then moves this plan's time on to that point: it waited for the verdict."""
+        t = self.t()
+        with self.board._cond:
+            claim = next((c for c in reversed(self.board._claims) if c[0] <= t + 1e-9), None)
+            if claim is None:
+                return
+            while claim[1] is None:
+                self.board._cond.wait()
+            end = claim[1]
+        self.waited += max(0.0, end - self.t())
