@@ -177,6 +177,7 @@ def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path
         _close(parts)
     attempts = c.state(c.GetMyContextFromRoot(ctx)).attempts
     assert attempts[0]["lookahead"] == "" and attempts[1]["lookahead"] == expect
+    assert attempts[1]["waited"] == 0.0  # fixed latencies: no plan reads the lookahead's board
     second = decisions[max(decisions)]
     assert second.t_visible - second.t_request == pytest.approx(planning_s, abs=0.06)
 

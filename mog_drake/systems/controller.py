@@ -207,6 +207,8 @@ class ControllerSystem(LeafSystem):
                                 # memory was in time for this plan (see PlannerSystem).
                                 "remembered": dec.remembered,
                                 "lookahead": d.lookahead,
+                                # Simulated time it waited for the lookahead's verdicts (board).
+                                "waited": dec.waited,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
                             }
                         )
@@ -312,6 +314,7 @@ class ControllerSystem(LeafSystem):
                 "remembered": dec.remembered,
                 "remembered_pushes": dec.remembered_pushes,
                 "lookahead": d.lookahead,
+                "waited": dec.waited,
             }
         )
 
