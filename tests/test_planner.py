@@ -708,3 +708,28 @@ def test_the_lookahead_writes_each_group_it_simulates_and_each_verdict_on_its_bo
     assert len(reader.got) == len(memory) and {id(e) for e in reader.got} == {id(e) for e in memory}
     reader.wait()  # nothing is claimed at 2.5: no wait
     assert reader.waited == 0.0
+
+
+def test_a_verdict_the_decision_already_remembers_is_not_taken_twice_from_the_board():
+    """The lookahead's memory holds the entries it was given: the decision has them already.
+    Read again from the board, they would stand twice in the memory the decision passes on."""
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene(
+        [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
+    )
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    known = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=()).failures
+    board = Board(0.0, clock=lambda: 0.0)
+    board.start()
+    for entry in known:
+        board.post(entry)
+    board.finish()
+    v = FakeVerifier()
+    d = next_pick(
+        scene, GraspPlanner(v, cfg), spec, failures=(known[1],), late=BoardReader(board, 0.0, lambda: 0.0)
+    )
+    assert len(v.asked) == 0 and d.remembered == 3 and d.merged
+    assert sorted(f.group for f in d.failures) == sorted(f.group for f in known)  # each once

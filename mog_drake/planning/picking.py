@@ -132,6 +132,13 @@ def _same_group(f_group, f_around, group, around) -> dict[int, int] | None:
     return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
 
 
+def _unknown(entries, *known) -> list:
+    """``entries`` less those (the same objects) in any of ``known``: the lookahead's memory
+    holds the entries it was given, which the decision has already."""
+    have = {id(f) for k in known for f in k}
+    return [f for f in entries if id(f) not in have]
+
+
 def _recall(pending: list, group, around, avoid) -> tuple[bool, PlanResult | None]:
     """The first remembered verdict in ``pending`` of ``group`` with ``around`` (taken out of
     ``pending``): (True, its replay), or (True, None) when its grasp repeats one to avoid;
@@ -328,7 +335,7 @@ def next_pick(
             memory = failures
             if failures is not None and late is not None:
                 d.merged |= bool(late.new())
-                memory = tuple(failures) + tuple(late.got)
+                memory = tuple(failures) + tuple(_unknown(late.got, failures))
             _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
             if late is not None:
                 d.waited = late.waited
@@ -375,7 +382,7 @@ def next_pick(
         if best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
         if failures is not None and late is not None and (got := late.new()):
-            pending += got
+            pending += _unknown(got, failures, pending)
             decision.merged = True
         res = None
         if failures is not None:
@@ -390,7 +397,7 @@ def next_pick(
             ):
                 late.wait()
                 if got := late.new():
-                    pending += got
+                    pending += _unknown(got, failures, pending)
                     decision.merged = True
                 met, res = _recall(pending, group, around, avoid)
             if res is not None:
