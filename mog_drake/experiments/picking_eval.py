@@ -144,11 +144,7 @@ def summarize(results: list[dict], modes) -> dict:
             mean, ci = mean_ci([r[key] * scale for r in rs if key in r and r[key] == r[key]])
             row[key], row[key + "_ci"] = mean, ci
         # The arm's wait for compute as a share of its robot time: the median over tables.
-        shares = [
-            100.0 * (r["wait_perception_s"] + r["wait_planning_s"]) / r["robot_time_s"]
-            for r in rs
-            if r.get("robot_time_s") and "wait_planning_s" in r and "wait_perception_s" in r
-        ]
+        shares = [w for r in rs if (w := _wait_pct(r)) == w]  # nan: not recorded
         row["wait_share_pct"] = float(statistics.median(shares)) if shares else float("nan")
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))

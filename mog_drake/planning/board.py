@@ -50,7 +50,6 @@ class Board:
         self._entries: list[tuple[float, object]] = []  # (stamp, verdict), in stamp order
         # (from, to or None while open, group, around): what the poster planned when.
         self._claims: list[list] = []
-        self._done: float | None = None  # stamp of `finish`
         self._posted: set[int] = set()  # ids of the entries posted
         if clock == "wall":  # a wall-clock latency counts from the request (queueing included)
             self.start()
@@ -90,9 +89,7 @@ class Board:
     def finish(self) -> None:
         """The poster is done: nothing more will be claimed or posted."""
         with self._cond:
-            s = self.stamp()
-            self._close(s)
-            self._done = s
+            self._close(self.stamp())
             self._cond.notify_all()
 
     def _close(self, s: float) -> None:
@@ -136,20 +133,23 @@ class BoardReader:
         known on the wall clock now; None if nothing is."""
         t = self.t()
         with self.board._cond:
-            for s, e, group, around in reversed(self.board._claims):
-                if s <= t + 1e-9:
-                    return (group, around) if e is None or e > t + 1e-9 else None
-        return None
+            claim = self._claim_at(t)
+            if claim is None or (claim[1] is not None and claim[1] <= t + 1e-9):
+                return None
+            return claim[2], claim[3]
 
     def wait(self) -> None:
         """Waits (on the wall clock) until the claim open at this plan's simulated time ends,
         then moves this plan's time on to that point: it waited for the verdict."""
-        t = self.t()
         with self.board._cond:
-            claim = next((c for c in reversed(self.board._claims) if c[0] <= t + 1e-9), None)
+            claim = self._claim_at(self.t())
             if claim is None:
                 return
             while claim[1] is None:
                 self.board._cond.wait()
             end = claim[1]
         self.waited += max(0.0, end - self.t())
+
+    def _claim_at(self, t: float) -> list | None:
+        """The poster's last claim begun by simulated time ``t`` (the board's lock held)."""
+        return next((c for c in reversed(self.board._claims) if c[0] <= t + 1e-9), None)

@@ -337,8 +337,6 @@ def next_pick(
                 d.merged |= bool(late.new())
                 memory = tuple(failures) + tuple(_unknown(late.got, failures))
             _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
-            if late is not None:
-                d.waited = late.waited
         return d
     mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
     t0 = time.perf_counter()
@@ -381,25 +379,23 @@ def next_pick(
             break
         if best is not None and deadline is not None and time.thread_time() > deadline:
             break  # past the budget: the verified partial lift in hand
-        if failures is not None and late is not None and (got := late.new()):
-            pending += _unknown(got, failures, pending)
-            decision.merged = True
         res = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            met, res = _recall(pending, group, around, avoid)
-            # The lookahead is planning this group: wait for its verdict, not plan it twice.
-            while (
-                not met
-                and late is not None
-                and (c := late.claimed())
-                and _same_group(*c, group, around) is not None
-            ):
-                late.wait()
-                if got := late.new():
+            while True:
+                if late is not None and (got := late.new()):
                     pending += _unknown(got, failures, pending)
                     decision.merged = True
                 met, res = _recall(pending, group, around, avoid)
+                # The lookahead is planning this group: wait for its verdict, not plan it twice.
+                if (
+                    met
+                    or late is None
+                    or (c := late.claimed()) is None
+                    or _same_group(*c, group, around) is None
+                ):
+                    break
+                late.wait()
             if res is not None:
                 decision.remembered += 1
         if res is None:
