@@ -361,3 +361,83 @@ def test_the_lookaheads_verdicts_are_visible_at_its_cpu_time_and_a_wait_is_laten
         assert plan.visible(1.0 + plan.cpu_time() + 0.5, None, block=True)
     finally:
         a.shutdown()
+
+
+def test_a_job_queued_behind_the_assistant_starts_when_it_ends_and_that_delay_is_latency():
+    """The lookahead's thread ran the decision's assistant until t = 0.8 (simulated). A
+    lookahead requested at 0.2 starts then, on the CPU clock: its board's verdicts are stamped
+    from 0.8, and its result is visible at 0.2 + 0.6 + its CPU time, not before. On the wall
+    clock, the time from the request counts the queueing already: no delay is added."""
+    from mog_drake.planning.board import Board, BoardReader
+
+    now = [0.0]
+    helper = Board(0.0, clock=lambda: now[0])
+    helper.start()
+    now[0] = 0.8
+    helper.finish()
+    a = Worker("ahead", "cpu")
+    board = Board(0.2, "cpu", after=helper)
+
+    def lookahead():
+        board.start()  # started already, by the worker: no second delay
+        _spin(0.2)
+        board.post("verdict")
+        board.finish()
+
+    try:
+        job = a.submit(lookahead, t_request=0.2, counter=1, info=board, delay=board.start)
+        job.future.result()
+        assert board.t_request == pytest.approx(0.8) and job.waited() == pytest.approx(0.6)
+        assert job.latency() == pytest.approx(job.cpu_time() + 0.6)
+        assert not job.visible(0.2 + job.cpu_time() + 0.55, None, block=True)
+        assert job.visible(0.2 + job.cpu_time() + 0.6, None, block=True)
+        stamp = board._entries[0][0]
+        assert stamp == pytest.approx(0.8 + job.cpu_time(), abs=0.02)
+        assert BoardReader(board, stamp - 0.05, lambda: 0.0).new() == []
+        assert BoardReader(board, stamp, lambda: 0.0).new() == ["verdict"]
+    finally:
+        a.shutdown()
+    assert Board(0.2, "wall", after=helper).t_request == 0.2
+
+
+class FailsGroupsWith:
+    """A verifier that fails every grasp of a group holding object ``i`` and lifts any other:
+    planning costs no physics."""
+
+    def __init__(self, i):
+        self.i = i
+
+    def check(self, scene, group, grasp):
+        ok = self.i not in group
+        return GraspResult(ok, lifted=list(group) if ok else [])
+
+
+def test_a_tables_first_decision_is_assisted_and_alg1s_choice_is_unchanged(tmp_path):
+    """mog, CPU latencies, three objects apart, no grasp for a group holding the first. The
+    first decision runs with its assistant on the lookahead's idle core; it takes the same
+    grasp as without one."""
+    objects = [
+        ("large_hexagon", 0.05, -0.10, 0.3),
+        ("blue_quad", -0.12, 0.12, 0.9),
+        ("red_triangle", 0.15, 0.1, 0.2),
+    ]
+    truth = make_scene(objects)
+    truth.save(tmp_path / "scene.yaml")
+    firsts = {}
+    for assisted in (True, False):
+        sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("cpu"))
+        sc.planner.mode, sc.planner.assist = "mog", assisted
+        d, parts = MakePickDiagram(sc, verifier=FailsGroupsWith(0))
+        sim = Simulator(d)
+        ctx = sim.get_mutable_context()
+        c = parts["controller"]
+        try:
+            while ctx.get_time() < 30.0 and not c.state(c.GetMyContextFromRoot(ctx)).attempts:
+                sim.AdvanceTo(ctx.get_time() + 0.05)
+        finally:
+            _close(parts)
+        firsts[assisted] = c.state(c.GetMyContextFromRoot(ctx)).attempts[0]
+    assert firsts[True]["assisted"] and not firsts[False]["assisted"]
+    assert 0 not in firsts[True]["group"]  # no group holding object 0 has a grasp
+    for k in ("group", "grasp", "expected"):
+        assert firsts[True][k] == firsts[False][k]

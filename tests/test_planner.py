@@ -733,3 +733,72 @@ def test_a_verdict_the_decision_already_remembers_is_not_taken_twice_from_the_bo
     )
     assert len(v.asked) == 0 and d.remembered == 3 and d.merged
     assert sorted(f.group for f in d.failures) == sorted(f.group for f in known)  # each once
+
+
+def _four_apart():
+    return make_scene(
+        [
+            ("large_hexagon", -0.15, 0.0, 0.0),
+            ("blue_quad", 0.0, 0.15, 0.0),
+            ("red_triangle", 0.15, 0.0, 0.0),
+            ("orange_quad", 0.0, -0.15, 0.0),
+        ]
+    )
+
+
+def test_the_assistant_plans_every_other_group_the_decision_must_simulate():
+    """Four lone objects, no grasp for any, one physics check per group (1 s of the
+    assistant's clock each). The decision (its board scripted here) begins the first group at
+    t = 0: the assistant plans the second and the fourth, each verdict posted at the end of
+    its check. Started at 1.5 s instead (its core was busy), it finds the decision has begun
+    the first two groups: it skips the second and plans only the fourth. Once the decision
+    has a grasp (posted at 0.5 s), it finishes the check under way and stops; a check cut
+    short is not posted."""
+    from dataclasses import replace
+
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import FailedGroup, assist, next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
+    order = [p.group for p in alone.plans]  # Alg. 1's order
+    known = {f.group: f for f in alone.failures}
+    assert alone.status == "no_grasp" and len(order) == 4
+
+    def run(t0, main_board, config=cfg):
+        v = FakeVerifier()
+        clock = lambda: float(len(v.asked))  # noqa: E731
+        board = Board(t0, clock)
+        n = assist(scene, GraspPlanner(v, config), spec, BoardReader(main_board, t0, clock), board)
+        return n, v, board
+
+    main = Board(0.0, clock=lambda: 0.0)
+    main.start()
+    main.claim(order[0], known[order[0]].around)
+    n, v, board = run(0.0, main)
+    assert n == 2 and len(v.asked) == 2 and board.end == 2.0
+    assert [e.group for _, e in board._entries] == [order[1], order[3]]
+    assert [s for s, _ in board._entries] == [1.0, 2.0]
+
+    now = [0.0]
+    main = Board(0.0, clock=lambda: now[0])
+    main.start()
+    for k in range(2):  # the decision planned the first group from 0 to 1, the second from 1
+        now[0] = float(k)
+        main.claim(order[k], known[order[k]].around)
+    n, v, board = run(1.5, main)
+    assert n == 1 and [e.group for _, e in board._entries] == [order[3]]
+
+    found = FailedGroup(order[0], known[order[0]].around, replace(known[order[0]].result, grasp=np.zeros(3)))
+    assert found.result.found
+    now[0] = 0.0
+    main = Board(0.0, clock=lambda: now[0])
+    main.start()
+    now[0] = 0.5
+    main.post(found)
+    n, v, board = run(0.0, main)  # the second group's check (0 to 1) ends, then it stops
+    assert n == 1 and len(v.asked) == 1 and board.end == 1.0
+    n, v, board = run(0.0, main, PlannerConfig("gp", max_physics=3))
+    assert n == 0 and len(v.asked) == 1 and board._entries == [] and board.end == 1.0

@@ -341,6 +341,55 @@ def run(
     return summary, results
 
 
+WAIT_KINDS = {
+    "first": "a table's first decision",
+    "used": "lookahead in time",
+    "merged": "lookahead late, its board read",
+    "dropped": "lookahead late, dropped",
+    "": "no lookahead",
+}
+
+
+def wait_by_decision(runs: list[dict]) -> dict:
+    """Where the arm waited for compute: the idle time before each attempt or push (from the
+    end of the one before, or the run's start), by what the decision it waited for had from
+    the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time,
+    and the waits and count of the decisions planned with the assistant ("assisted")."""
+    out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0, "assisted_s": 0.0, "assisted": 0}
+    for r in runs:
+        events = sorted(
+            r.get("attempts", []) + [p for p in r.get("pushes", []) if "end" in p], key=lambda e: e["start"]
+        )
+        end = 0.0
+        for k, e in enumerate(events):
+            wait = max(0.0, e["start"] - end)
+            kind = "first" if k == 0 else e.get("lookahead", "")
+            out[kind if kind in out else ""] += wait
+            if e.get("assisted"):
+                out["assisted_s"] += wait
+                out["assisted"] += 1
+            end = e["end"]
+        out["robot_time_s"] += r["summary"].get("robot_time_s", 0.0)
+    return out
+
+
+def wait_text(results: list[dict], modes) -> str:
+    """One line per mode: `wait_by_decision`'s split, in s and in points of robot time."""
+    lines = []
+    for m in modes:
+        w = wait_by_decision([r for r in results if r["mode"] == m])
+        if not w["robot_time_s"]:
+            continue
+        pts = 100.0 / w["robot_time_s"]
+        total = sum(w[k] for k in WAIT_KINDS)
+        parts = "; ".join(f"{text} {w[k]:.0f} s ({w[k] * pts:.1f})" for k, text in WAIT_KINDS.items() if w[k])
+        line = f"{m}: the arm waited {total:.0f} s ({total * pts:.1f} % of robot time): {parts}"
+        if w["assisted"]:
+            line += f"; {w['assisted']} decisions planned with the assistant: {w['assisted_s']:.0f} s of it"
+        lines.append(line)
+    return "\n".join(lines)
+
+
 def losses_text(summary: dict) -> str:
     """One line per mode: where the objects not picked ended and how the runs ended."""
     lines = []
@@ -392,6 +441,8 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
             + compare_text(modes)
         )
     text += "\n" + losses_text(summary)
+    if waits := wait_text(results, [r["mode"] for r in summary["rows"]]):
+        text += "\n" + waits
     if compare_dir:
         other = Path(compare_dir) / "results.jsonl"
         if not other.exists():

@@ -41,9 +41,13 @@ class Board:
     or a function, for tests). The poster calls `start`, then `claim` / `post`, then `finish`;
     any other thread reads it through a `BoardReader`."""
 
-    def __init__(self, t_request: float, clock: str | Callable[[], float] = "wall"):
+    def __init__(
+        self, t_request: float, clock: str | Callable[[], float] = "wall", after: Board | None = None
+    ):
         self.t_request = t_request
         self._clock = clock
+        self._after = after  # a board whose poster holds this one's thread until it finishes
+        self.end: float | None = None  # the simulated time the poster finished
         self._now: Callable[[], float] | None = None
         self._c0 = 0.0
         self._cond = threading.Condition()
@@ -54,12 +58,19 @@ class Board:
         if clock == "wall":  # a wall-clock latency counts from the request (queueing included)
             self.start()
 
-    def start(self) -> None:
+    def start(self) -> float:
         """On the poster's thread, as it starts: its clock starts here ("wall": at the
-        request)."""
-        if self._now is None:
-            self._now = self._clock if callable(self._clock) else thread_clock(self._clock)
-            self._c0 = self._now()
+        request), and its simulated time no earlier than the end of ``after``'s poster, which
+        ran on the same thread before it (on the wall clock, time from the request counts that
+        already). Returns how much later than ``t_request`` it starts (s), once: 0 after."""
+        if self._now is not None:
+            return 0.0
+        self._now = self._clock if callable(self._clock) else thread_clock(self._clock)
+        self._c0 = self._now()
+        t0 = self.t_request
+        if self._after is not None and self._after.end is not None and self._clock != "wall":
+            self.t_request = max(t0, self._after.end)
+        return self.t_request - t0
 
     def stamp(self) -> float:
         """The poster's simulated time now (on its own thread)."""
@@ -89,7 +100,8 @@ class Board:
     def finish(self) -> None:
         """The poster is done: nothing more will be claimed or posted."""
         with self._cond:
-            self._close(self.stamp())
+            self.end = self.stamp()
+            self._close(self.end)
             self._cond.notify_all()
 
     def _close(self, s: float) -> None:
@@ -149,6 +161,22 @@ class BoardReader:
                 self.board._cond.wait()
             end = claim[1]
         self.waited += max(0.0, end - self.t())
+
+    def claims(self) -> list[tuple]:
+        """(group, around) of every claim the poster had begun by this plan's simulated time,
+        as far as is known on the wall clock now."""
+        t = self.t()
+        with self.board._cond:
+            return [(c[2], c[3]) for c in self.board._claims if c[0] <= t + 1e-9]
+
+    def stopped(self, final: Callable[[object], bool]) -> bool:
+        """Whether the poster had finished, or posted a verdict for which ``final`` is true,
+        by this plan's simulated time, as far as is known on the wall clock now."""
+        t = self.t()
+        with self.board._cond:
+            if self.board.end is not None and self.board.end <= t + 1e-9:
+                return True
+            return any(final(e) for s, e in self.board._entries if s <= t + 1e-9)
 
     def _claim_at(self, t: float) -> list | None:
         """The poster's last claim begun by simulated time ``t`` (the board's lock held)."""

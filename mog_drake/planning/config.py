@@ -87,6 +87,13 @@ class PlannerSpec:
     # simulates more than a plan without them. (Waiting for the whole lookahead instead was
     # tried and measured worse: docs/experiments.md, session 18.)
     merge_lookahead: bool = True
+    # With the lookahead's core idle when a decision starts (each table's first decision, and
+    # those whose lookahead was in time), half the groups the decision must simulate are
+    # planned there, beside it (measured latencies; mog and push-mog, with the lookahead and
+    # the ranked planners, whose checks are deterministic, and no decision_budget_s): the
+    # decision replays their verdicts, and Alg. 1's choice is unchanged (see
+    # mog_drake.planning.picking.assist).
+    assist: bool = True
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.

@@ -208,6 +208,7 @@ class PickDecision:
     # simulated time it waited for them beyond its own clock (s).
     merged: bool = False
     waited: float = 0.0
+    from_board: int = 0  # verdicts taken from that board (the lookahead's or the assistant's)
     # The entry of the grasp found, as posted on a board (``post``; see `lookahead`).
     found_entry: FailedGroup | None = None
     # What to remember for the next decision: failures seen (or replayed) now, then the older
@@ -239,6 +240,7 @@ class PickDecision:
             "remembered_pushes": self.remembered_pushes,
             "merged": self.merged,
             "waited": self.waited,
+            "from_board": self.from_board,
         }
 
 
@@ -338,7 +340,7 @@ def next_pick(
                 memory = tuple(failures) + tuple(_unknown(late.got, failures))
             _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
         return d
-    mode, grouping, last_resort = spec.mode, spec.grouping, spec.last_resort
+    mode, last_resort = spec.mode, spec.last_resort
     t0 = time.perf_counter()
     deadline = time.thread_time() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
     if len(scene) == 0:
@@ -352,19 +354,14 @@ def next_pick(
         if d.status != "grasp":
             d.status = "unrecognised"
         return d
-    polys = scene.polygons()
     if mode == "mog":
-        groups = ranked_groups(polys, planner.gripper, grouping, spec.group_radius)
-        if adjacent > 0:
-            more = [g for g in adjacent_groups(polys, adjacent, planner.gripper.w_g) if g not in groups]
-            groups = sorted(groups + more, key=lambda g: -len(g))
+        groups = _mog_groups(scene, planner, spec, adjacent)
     else:
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
         groups = [(int(i),) for i in rng.permutation(len(scene))]
     if len(exclude):
-        excluded = {int(i) for i in exclude}
-        groups = [g for g in groups if not excluded.intersection(g)]
+        groups = _excluding(groups, exclude)
         if not groups:
             return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
     partial_lifts = spec.partial_lifts and mode == "mog"
@@ -428,10 +425,111 @@ def next_pick(
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
     if late is not None:
-        decision.waited = late.waited
+        decision.waited, decision.from_board = late.waited, len(late.got)
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float) -> list[tuple[int, ...]]:
+    """Alg. 1's groups of ``scene`` (``spec.grouping``), largest first; with ``adjacent``
+    above 0 (push-mog), the groups of objects that meet within it too."""
+    polys = scene.polygons()
+    groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
+    if adjacent > 0:
+        more = [g for g in adjacent_groups(polys, adjacent, planner.gripper.w_g) if g not in groups]
+        groups = sorted(groups + more, key=lambda g: -len(g))
+    return groups
+
+
+def _excluding(groups: list, exclude) -> list:
+    excluded = {int(i) for i in exclude}
+    return [g for g in groups if not excluded.intersection(g)]
+
+
+def assist(
+    scene,
+    planner: GraspPlanner,
+    spec: PlannerSpec,
+    main: BoardReader,
+    board: Board,
+    avoid=(),
+    failures=(),
+    exclude=(),
+) -> int:
+    """Plans, on a second core, half the groups the decision that `next_pick` plans on the same
+    image must simulate (an extension; see `PlannerSpec.assist`), and posts each verdict on
+    ``board``, which the decision reads (its ``late``). Returns the groups it planned.
+
+    The groups are Alg. 1's, in its order (push-mog: with the adjacent ones), less those
+    replayed from ``failures`` (with ``avoid``, as the decision replays them), which cost no
+    physics: this plans the second, fourth, ... of the rest, while the decision plans the
+    first, third, ... and waits for each of these when it gets there (or plans it itself if
+    this has not begun it by then: see `mog_drake.planning.board`). Alg. 1's choice is
+    unchanged: a group's physics gives one verdict on either core (the ranked planner's
+    candidates and checks are deterministic), and the decision takes the first group in
+    order with a grasp.
+
+    ``main`` reads the decision's own board. A group the decision has begun by this plan's
+    simulated time is skipped. It stops at its own first grasp (Alg. 1 would take no later
+    group), where a partial lift of an earlier group holds at least as many objects as the
+    group next (the decision stops there: see next_pick's partial_lifts), and as soon as the
+    decision has a grasp or is done, by this plan's simulated time (a check under way ends
+    first, then its group is not posted). A next job on this thread starts no earlier than it
+    ends (`Board`'s ``after``, `Worker.submit`'s ``delay``)."""
+    board.start()
+    planned = 0
+
+    def final(e) -> bool:
+        return isinstance(e, FailedGroup) and e.result.found
+
+    def stopped() -> bool:
+        return main.stopped(final)
+
+    try:
+        if len(scene) == 0:
+            return 0
+        groups = _excluding(
+            _mog_groups(scene, planner, spec, ADJACENT_GAP if spec.mode == "push-mog" else 0.0), exclude
+        )
+        rank = {g: k for k, g in enumerate(groups)}
+        pending, todo, lifts = list(failures), [], []  # lifts: (rank, objects) of partial lifts
+        for g in groups:
+            around = _around(scene, g, planner.gripper)
+            res = _recall(pending, g, around, avoid)[1]
+            if res is None:
+                todo.append((g, around))
+            elif res.found:
+                break  # the decision takes this remembered grasp at the latest
+            elif res.best_lift is not None:
+                lifts.append((rank[g], len(res.best_lift[1])))
+        partial_lifts = spec.partial_lifts
+        for g, around in todo[1::2]:
+            if stopped():
+                break
+            seen = main.claims()
+            if any(_same_group(*c, g, around) is not None for c in seen):
+                continue
+            lifts += [
+                (rank[e.group], len(e.result.best_lift[1]))
+                for e in main.new()
+                if isinstance(e, FailedGroup) and e.group in rank and e.result.best_lift is not None
+            ]
+            if partial_lifts and any(k < rank[g] and n >= len(g) for k, n in lifts):
+                break
+            board.claim(g, around)
+            res = planner.plan(scene, g, avoid=avoid, stop=stopped)
+            if res.cut_short:
+                break
+            board.post(FailedGroup(tuple(res.group), around, res))
+            planned += 1
+            if res.found:
+                break
+            if res.best_lift is not None:
+                lifts.append((rank[g], len(res.best_lift[1])))
+        return planned
+    finally:
+        board.finish()
 
 
 def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]]:

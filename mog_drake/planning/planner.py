@@ -37,6 +37,12 @@ _RANKED = {"gp": True, "rand-phys": False, "rank-phys": True, "rand-fil-phys": F
 _FILTERED = {"gp": True, "rand-phys": False, "rank-phys": False, "rand-fil-phys": True, "single": True}
 
 
+def draws_at_random(method: str) -> bool:
+    """Whether ``method`` draws at random (its candidates' order, or the object): else a
+    plan of the same scene and group gives the same verdict every time."""
+    return not _RANKED[method] or method == "single"
+
+
 @dataclass
 class PlannerConfig:
     method: str = "gp"
@@ -179,6 +185,7 @@ class GraspPlanner:
         skip=(),
         deadline: float | None = None,
         fallback: bool = False,
+        stop=None,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
@@ -186,14 +193,16 @@ class GraspPlanner:
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
         goes on where the earlier one stopped. ``deadline``: a time of this thread's CPU clock
         (`time.thread_time`) past which no more candidates are simulated once a verified grasp
-        is in hand: this plan's partial lift, or (``fallback``) the caller's."""
+        is in hand: this plan's partial lift, or (``fallback``) the caller's. ``stop()``: true
+        once no more candidates are to be simulated (the plan is cut short: its caller no
+        longer needs it)."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
         group = tuple(int(g) for g in group)
         if not group:
             raise MogError("the group to grasp is empty")
-        if (not _RANKED[method] or method == "single") and rng is None:
+        if draws_at_random(method) and rng is None:
             raise MogError(f"method '{method}' draws at random: pass a seeded numpy Generator")
         if method == "single":
             group = (group[int(rng.integers(len(group)))],)
@@ -251,6 +260,9 @@ class GraspPlanner:
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
                 break
             if deadline is not None and (fallback or best_lift is not None) and time.thread_time() > deadline:
+                cut = True
+                break
+            if stop is not None and stop():
                 cut = True
                 break
             last = self.verifier.check(scene, group, cands[i])

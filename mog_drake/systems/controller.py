@@ -207,8 +207,11 @@ class ControllerSystem(LeafSystem):
                                 # memory was in time for this plan (see PlannerSystem).
                                 "remembered": dec.remembered,
                                 "lookahead": d.lookahead,
-                                # Simulated time it waited for the lookahead's verdicts (board).
+                                # Simulated time it waited for the verdicts of the lookahead
+                                # or its assistant (their board), and the verdicts it took.
                                 "waited": dec.waited,
+                                "assisted": d.assisted,
+                                "from_board": dec.from_board,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
                             }
                         )
@@ -315,6 +318,8 @@ class ControllerSystem(LeafSystem):
                 "remembered_pushes": dec.remembered_pushes,
                 "lookahead": d.lookahead,
                 "waited": dec.waited,
+                "assisted": d.assisted,
+                "from_board": dec.from_board,
             }
         )
 

@@ -83,12 +83,14 @@ class Job:
 
     def elapsed(self) -> float:
         """Time the job has run so far on its clock (s): wall time since it was submitted, or
-        its thread's CPU time since it started."""
+        its thread's CPU time since it started, plus how late it started (`Worker.submit`'s
+        ``delay``)."""
         if self.clock == "wall":
             return time.perf_counter() - self.t_submit
         if "clock_id" not in self._started:
             return 0.0
-        return time.clock_gettime(self._started["clock_id"]) - self._started["cpu0"]
+        cpu = time.clock_gettime(self._started["clock_id"]) - self._started["cpu0"]
+        return cpu + self._started["delay"]
 
     def t_visible(self, latency: float | None) -> float:
         """The simulated time its result became visible (it must be visible): its request plus
@@ -131,8 +133,9 @@ class Job:
         return self.future.result()[2]
 
     def waited(self) -> float:
-        """Simulated time the job spent waiting for another job's results, beyond its own
-        clock (s; see `Worker.submit`'s ``waited``); it must be done."""
+        """Simulated time the job spent waiting for another job's results or for its thread,
+        beyond its own clock (s; see `Worker.submit`'s ``waited`` and ``delay``); it must be
+        done."""
         return self.future.result()[3]
 
     def latency(self) -> float:
@@ -151,12 +154,15 @@ class Worker:
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
-    def submit(self, fn, *args, t_request: float, counter: int, info=None, waited=None) -> Job:
+    def submit(self, fn, *args, t_request: float, counter: int, info=None, waited=None, delay=None) -> Job:
         """Runs ``fn(*args)`` on the worker's thread; its wall time counts from the request
         (queueing included), its CPU time from its own start. ``waited(result)``: the
         simulated time the job waited for another's results beyond its own clock (a plan that
         waited for the lookahead's verdicts: `mog_drake.planning.board`), added to its
-        latency."""
+        latency. ``delay()``, called on the thread as the job starts: the simulated time it
+        starts after its request because the thread was busy until then on the CPU clock (the
+        decision's assistant ran on: `mog_drake.planning.picking.assist`), added to its
+        latency too (the wall clock counts queueing already)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
@@ -165,10 +171,11 @@ class Worker:
         def run():
             clock_id = time.pthread_getcpuclockid(threading.get_ident())
             cpu0 = time.clock_gettime(clock_id)
-            started.update(clock_id=clock_id, cpu0=cpu0)
+            late = delay() if delay is not None else 0.0
+            started.update(clock_id=clock_id, cpu0=cpu0, delay=late)
             out = fn(*args)
             wall, cpu = time.perf_counter() - t_submit, time.clock_gettime(clock_id) - cpu0
-            return out, wall, cpu, waited(out) if waited is not None else 0.0
+            return out, wall, cpu, late + (waited(out) if waited is not None else 0.0)
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

@@ -14,7 +14,8 @@ from pydrake.systems.framework import LeafSystem
 
 from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
+from mog_drake.planning.picking import PickDecision, assist, lookahead, next_pick, tally_misses
+from mog_drake.planning.planner import draws_at_random
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -41,6 +42,7 @@ class Decision(_Immutable):
     # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
     # in while the plan ran: merge_lookahead), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
+    assisted: bool = False  # half its groups were planned on the lookahead's core (assist)
 
 
 class PlannerSystem(LeafSystem):
@@ -83,12 +85,24 @@ class PlannerSystem(LeafSystem):
             and self._spec.remember_failures
             and self._spec.mode in ("mog", "push-mog")
         )
+        # The decision's assistant on the lookahead's core when that is idle (see
+        # mog_drake.planning.picking.assist): deterministic checks, measured latencies.
+        self._assist = (
+            self._lookahead
+            and self._spec.assist
+            and self._latency is None
+            and not draws_at_random(self._spec.method)
+            and self._spec.decision_budget_s == 0
+        )
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        # The last job sent to the lookahead's thread (a lookahead or an assistant), its
+        # board in its info: a job sent after it starts no earlier than it ends.
+        self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -108,7 +122,7 @@ class PlannerSystem(LeafSystem):
         if job is not None and job.visible(t, self._latency, self._block):
             job_counter = job.counter
             d, rng = job.result()
-            base, n_objects, scene, misses, ahead_use = job.info
+            base, n_objects, scene, misses, ahead_use, assisted = job.info
             if ahead_use == "late":
                 ahead_use = "merged" if d.merged else "dropped"
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
@@ -133,6 +147,7 @@ class PlannerSystem(LeafSystem):
                 _targets(d, scene),
                 misses,
                 ahead_use,
+                assisted,
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
@@ -143,7 +158,7 @@ class PlannerSystem(LeafSystem):
             if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
                 # push-mog: it considers pushes too, with the pushes left after this decision.
                 # It writes on a board as it goes, for the next plan if that starts first.
-                board = Board(t, self._clock)
+                board = Board(t, self._clock, after=self._thread_board(state))
                 ahead = self._ahead_worker.submit(
                     functools.partial(lookahead, pushes_left=self._spec.max_pushes - cur.pushes, board=board),
                     d.after if chained else scene,
@@ -155,8 +170,10 @@ class PlannerSystem(LeafSystem):
                     t_request=t,
                     counter=job_counter,
                     info=board,
+                    delay=board.start,
                 )
                 state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
+                state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
         p = self._scene.Eval(context)
         last = job.counter if job is not None else cur.counter
         if job is not None or p.scene is None or p.counter <= last:
@@ -182,38 +199,89 @@ class PlannerSystem(LeafSystem):
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
+        avoid, failures = base.recent, memory if self._spec.remember_failures else None
+        post = None
+        last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
+        if self._assist and late is None and (last is None or last.future.done()):
+            # The lookahead's core is idle: half the groups are planned there (its board is
+            # this plan's ``late``), and it reads this plan's board (``post``).
+            post, helper = Board(t, self._clock), Board(t, self._clock, after=self._thread_board(state))
+            aid = self._ahead_worker.submit(
+                self._aid,
+                p.scene,
+                base.recent,
+                failures or (),
+                given_up,
+                post,
+                helper,
+                t,
+                t_request=t,
+                counter=p.counter,
+                info=helper,
+                delay=helper.start,
+            )
+            state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(aid))
+            late = (helper, t)
         job = self._worker.submit(
             self._plan,
             p.scene,
             rng,
-            base.recent,
-            memory if self._spec.remember_failures else None,
+            avoid,
+            failures,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.max_pushes - base.pushes,
             given_up,
             late,
+            post,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene), p.scene, misses, ahead_use),
+            info=(base, len(p.scene), p.scene, misses, ahead_use, post is not None),
             waited=lambda out: out[0].waited,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post):
         source = None if late is None else BoardReader(*late, self._clock)
-        d = next_pick(
-            scene,
-            self._planner,
-            self._spec,
-            rng,
-            avoid=avoid,
-            failures=failures,
-            grasp_unrecognised=grasp_unrecognised,
-            pushes_left=pushes_left,
-            exclude=exclude,
-            late=source,
-        )
+        try:
+            d = next_pick(
+                scene,
+                self._planner,
+                self._spec,
+                rng,
+                avoid=avoid,
+                failures=failures,
+                grasp_unrecognised=grasp_unrecognised,
+                pushes_left=pushes_left,
+                exclude=exclude,
+                late=source,
+                post=post,
+            )
+        finally:
+            if post is not None:
+                post.finish()  # the assistant stops
         return d, rng
+
+    def _aid(self, scene, avoid, failures, exclude, main, board, t):
+        return assist(
+            scene,
+            self._ahead_planner,
+            self._spec,
+            BoardReader(main, t, self._clock),
+            board,
+            avoid,
+            failures,
+            exclude,
+        )
+
+    def _thread_board(self, state) -> Board | None:
+        """The board of the last job sent to the lookahead's thread, if any (a job of its that
+        raised re-raises here, in the Diagram's thread)."""
+        last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
+        if last is None:
+            return None
+        if last.future.done() and last.future.exception() is not None:
+            last.future.result()
+        return last.info
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
