@@ -214,7 +214,6 @@ class PlannerSystem(LeafSystem):
                 given_up,
                 post,
                 helper,
-                t,
                 t_request=t,
                 counter=p.counter,
                 info=helper,
@@ -242,6 +241,8 @@ class PlannerSystem(LeafSystem):
 
     def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post):
         source = None if late is None else BoardReader(*late, self._clock)
+        if post is not None:
+            post.start()  # its stamps count this thread's time from here
         try:
             d = next_pick(
                 scene,
@@ -261,17 +262,10 @@ class PlannerSystem(LeafSystem):
                 post.finish()  # the assistant stops
         return d, rng
 
-    def _aid(self, scene, avoid, failures, exclude, main, board, t):
-        return assist(
-            scene,
-            self._ahead_planner,
-            self._spec,
-            BoardReader(main, t, self._clock),
-            board,
-            avoid,
-            failures,
-            exclude,
-        )
+    def _aid(self, scene, avoid, failures, exclude, main, board):
+        # Started already (its delay): its time is its request, or the end of the job before.
+        main = BoardReader(main, board.t_request, self._clock)
+        return assist(scene, self._ahead_planner, self._spec, main, board, avoid, failures, exclude)
 
     def _thread_board(self, state) -> Board | None:
         """The board of the last job sent to the lookahead's thread, if any (a job of its that
