@@ -13,6 +13,12 @@ reads it through a `BoardReader`:
 - a group the lookahead is planning at that point is not planned a second time: the decision
   waits for its verdict, and that wait is simulated time it spends (``waited``).
 
+The decision's assistant (`mog_drake.planning.picking.assist`) runs on the lookahead's core
+when that is idle, and the two boards go both ways: the decision reads the assistant's as it
+reads a lookahead's, and the assistant reads the decision's to skip the groups it has begun
+(`BoardReader.claims`) and to stop once it has a grasp (`BoardReader.stopped`). A job that
+follows a poster on the same thread starts no earlier than that poster ended (``after``).
+
 Simulated time: the lookahead's point is its request plus the time it has run on its clock
 (its thread's CPU time, or the wall clock), the decision's its request plus the time it has
 run on its own clock plus its waits. Nothing is seen before that point: a verdict or claim

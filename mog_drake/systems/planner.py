@@ -209,7 +209,7 @@ class PlannerSystem(LeafSystem):
             aid = self._ahead_worker.submit(
                 self._aid,
                 p.scene,
-                base.recent,
+                avoid,
                 failures or (),
                 given_up,
                 post,
