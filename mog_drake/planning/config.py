@@ -92,8 +92,12 @@ class PlannerSpec:
     # planned there, beside it (measured latencies; mog and push-mog, with the lookahead and
     # the ranked planners, whose checks are deterministic, and no decision_budget_s): the
     # decision replays their verdicts, and Alg. 1's choice is unchanged (see
-    # mog_drake.planning.picking.assist).
-    assist: bool = True
+    # mog_drake.planning.picking.assist). Off by default: on mog tables 0-3 (v12) the arm
+    # waited longer. Most decisions need one or two groups simulated, so the assistant
+    # rarely contributes a verdict, while the check it has under way when the decision is
+    # done delays the next lookahead, which is then late more often (docs/experiments.md,
+    # session 22).
+    assist: bool = False
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.
