@@ -694,7 +694,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--scenes",
         type=int,
         default=20,
-        help="scenes per class (geometry, verifier); tables (perception, replanning, hold, bodies, table, surface); copies per shape (rest)",
+        help="scenes per class (geometry, verifier); tables (perception, replanning, hold, bodies, table, surface, checks); copies per shape (rest)",
     )
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")

@@ -400,6 +400,94 @@ def test_a_job_queued_behind_the_assistant_starts_when_it_ends_and_that_delay_is
     assert Board(0.2, "wall", after=helper).t_request == 0.2
 
 
+def test_on_the_modelled_clock_a_decision_sees_each_verdict_posted_by_its_time_however_late():
+    """The lookahead (requested at t = 0) is held on the wall clock before its first check
+    ends; its checks then charge 0.3 s and 1.0 s of modelled time, a verdict after each. A
+    decision requested at 0.5 that reads at once, on the wall clock, sees nothing without
+    ``sync`` (the CPU and wall clocks' rule: what was not posted yet is missed); with it, it
+    waits for the lookahead to get past 0.5 and sees the first verdict, not the second. The
+    lookahead's latency is its modelled time: visible at 1.3, not before."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.clock import charge
+
+    a = Worker("ahead", "modelled")
+    board = Board(0.0, "modelled")
+    started, release = threading.Event(), threading.Event()
+
+    def lookahead():
+        started.set()
+        release.wait()
+        charge(0.3)
+        board.post("first")
+        charge(1.0)
+        board.post("second")
+        board.finish()
+
+    try:
+        job = a.submit(lookahead, t_request=0.0, counter=1, info=board, delay=board.start)
+        started.wait()
+        assert BoardReader(board, 0.5, lambda: 0.0).new() == []
+        threading.Timer(0.05, release.set).start()
+        assert BoardReader(board, 0.5, lambda: 0.0, sync=True).new() == ["first"]
+        job.future.result()
+        assert BoardReader(board, 0.5, lambda: 0.0, sync=True).new() == ["first"]
+        assert job.latency() == pytest.approx(1.3)
+        assert not job.visible(1.29, None, block=True) and job.visible(1.3, None, block=True)
+    finally:
+        release.set()
+        a.shutdown()
+
+
+class CostlyChecks:
+    """A verifier that fails every grasp of a group holding object ``i`` and lifts any other,
+    each check charging ``cost`` s to the modelled clock after a random wall-clock pause (a
+    machine under changing load)."""
+
+    def __init__(self, i, cost, seed):
+        self.i, self.cost, self.rng = i, cost, np.random.default_rng(seed)
+
+    def check(self, scene, group, grasp):
+        from mog_drake.planning.clock import charge
+
+        time.sleep(float(self.rng.uniform(0.0, 0.03)))
+        charge(self.cost)
+        ok = self.i not in group
+        return GraspResult(ok, lifted=list(group) if ok else [])
+
+
+def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tmp_path):
+    """mog, four objects, each check 4 s of modelled time, its wall time random: the
+    lookahead is late and its board is read. Two runs with different wall-clock pauses give
+    the same attempts at the same simulated times, with the same waits."""
+    objects = [
+        ("large_hexagon", 0.05, -0.10, 0.3),
+        ("blue_quad", -0.12, 0.12, 0.9),
+        ("red_triangle", 0.15, 0.1, 0.2),
+        ("thin_bar", -0.1, -0.12, 1.2),
+    ]
+    truth = make_scene(objects)
+    truth.save(tmp_path / "scene.yaml")
+    runs = []
+    for seed in (1, 2):
+        sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
+        sc.planner.mode = "mog"
+        d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, seed))
+        sim = Simulator(d)
+        ctx = sim.get_mutable_context()
+        c = parts["controller"]
+        try:
+            while ctx.get_time() < 60.0 and len(c.state(c.GetMyContextFromRoot(ctx)).attempts) < 3:
+                sim.AdvanceTo(ctx.get_time() + 0.05)
+        finally:
+            _close(parts)
+        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board")
+        runs.append([{k: a.get(k) for k in keys} for a in c.state(c.GetMyContextFromRoot(ctx)).attempts])
+    assert len(runs[0]) == 3 and runs[0] == runs[1]
+    assert any(a["lookahead"] == "merged" or a["waited"] > 0 for a in runs[0]), runs[0]
+
+
 class FailsGroupsWith:
     """A verifier that fails every grasp of a group holding object ``i`` and lifts any other:
     planning costs no physics."""

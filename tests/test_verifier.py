@@ -97,6 +97,26 @@ def test_bad_grasp_is_an_error_result(verifier):
     assert not r.success and "finite" in r.error
 
 
+def test_each_simulation_charges_its_modelled_cost_to_the_thread_that_ran_it():
+    """latency.mode modelled: a check charges WorkCost.of(its simulated time, its object
+    bodies) to the calling thread's modelled clock; a verifier without a cost charges nothing,
+    and neither does a grasp refused before any simulation."""
+    from mog_drake.planning.clock import WorkCost, modelled_time
+
+    scene = make_scene(
+        [("thin_bar", 0.0, 0.0, math.pi / 2), ("thin_bar", 0.03, 0.0, math.pi / 2)], group=(0,)
+    )
+    cost = WorkCost(check_s=0.5, sim_s=2.0, body_sim_s=3.0)
+    t0 = modelled_time()
+    r = DrakeVerifier(cost=cost).check(scene, (0,), [0.0, 0.0, 0.0])
+    assert r.bodies == 2 and r.sim_time > 0.5
+    assert modelled_time() - t0 == pytest.approx(0.5 + r.sim_time * (2.0 + 3.0 * 2))
+    t1 = modelled_time()
+    DrakeVerifier().check(scene, (0,), [0.0, 0.0, 0.0])
+    DrakeVerifier(cost=cost).check(scene, (0,), [0.0, float("nan"), 0.0])
+    assert modelled_time() == t1
+
+
 def test_only_reachable_objects_are_simulated():
     scene = make_scene(
         [

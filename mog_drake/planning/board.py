@@ -20,31 +20,32 @@ reads a lookahead's, and the assistant reads the decision's to skip the groups i
 follows a poster on the same thread starts no earlier than that poster ended (``after``).
 
 Simulated time: the lookahead's point is its request plus the time it has run on its clock
-(its thread's CPU time, or the wall clock), the decision's its request plus the time it has
-run on its own clock plus its waits. Nothing is seen before that point: a verdict or claim
-posted later on the wall clock than the decision looks, though early enough in simulated
-time, is missed, and the decision plans that group itself. So reading the board never gives
-a decision anything it could not have had on a real cell, where the two run on two cores.
+(its thread's CPU time, its modelled time or the wall clock: `mog_drake.planning.clock`), the
+decision's its request plus the time it has run on its own clock plus its waits. Nothing is
+seen before that point. On the CPU and wall clocks, a verdict or claim posted later on the
+wall clock than the decision looks, though early enough in simulated time, is missed, and
+the decision plans that group itself. So reading the board never gives a decision anything
+it could not have had on a real cell, where the two run on two cores. On the modelled clock
+the reads are exact: a decision that reads at simulated time t first waits (on the wall
+clock) until the poster's modelled time has passed t or it has finished, so it sees all it
+would on a real cell, and the same on every run (``sync``).
 """
 
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 
+from mog_drake.planning.clock import thread_clock
 
-def thread_clock(clock: str) -> Callable[[], float]:
-    """The clock a job's time is measured on: "cpu" (the calling thread's CPU time) or
-    "wall"."""
-    return time.thread_time if clock == "cpu" else time.perf_counter
+SYNC_POLL_S = 0.002  # how often a synced read looks at the poster's modelled clock (wall s)
 
 
 class Board:
     """What a planning thread (the poster) shares while it runs: its claims (the group it is
     planning, from when to when) and its verdicts, each stamped with the simulated time it
     happened: ``t_request`` plus the poster's time on ``clock`` since `start` ("cpu", "wall",
-    or a function, for tests). The poster calls `start`, then `claim` / `post`, then `finish`;
+    "modelled", or a function, for tests). The poster calls `start`, then `claim` / `post`, then `finish`;
     any other thread reads it through a `BoardReader`."""
 
     def __init__(
@@ -71,7 +72,7 @@ class Board:
         already). Returns how much later than ``t_request`` it starts (s), once: 0 after."""
         if self._now is not None:
             return 0.0
-        self._now = self._clock if callable(self._clock) else thread_clock(self._clock)
+        self._now = thread_clock(self._clock)
         self._c0 = self._now()
         t0 = self.t_request
         if self._after is not None and self._after.end is not None and self._clock != "wall":
@@ -82,6 +83,13 @@ class Board:
         """The poster's simulated time now (on its own thread)."""
         self.start()
         return self.t_request + self._now() - self._c0
+
+    def reached(self, t: float) -> bool:
+        """Whether the poster has finished or its simulated time has passed ``t``, read from
+        any thread (the board's lock held); not before it starts."""
+        if self.end is not None:
+            return True
+        return self._now is not None and self.t_request + self._now() - self._c0 >= t - 1e-9
 
     def claim(self, group, around) -> None:
         """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
@@ -118,20 +126,31 @@ class Board:
 class BoardReader:
     """A plan's view of ``board``: the plan was requested at simulated time ``t_request`` and
     starts now, on this thread, timed on ``clock`` (as `Board`). ``waited``: simulated time
-    it has spent waiting for the poster, beyond its own clock."""
+    it has spent waiting for the poster, beyond its own clock. ``sync`` (the decision, on the
+    modelled clock): each read first waits until the poster has got as far (`Board.reached`),
+    so it sees all that was posted by then. (The assistant reads the decision's board without:
+    the decision may be waiting for the assistant's.)"""
 
-    def __init__(self, board: Board, t_request: float, clock: str | Callable[[], float] = "wall"):
+    def __init__(
+        self, board: Board, t_request: float, clock: str | Callable[[], float] = "wall", sync: bool = False
+    ):
         self.board = board
         self.t_request = t_request
-        self._now = clock if callable(clock) else thread_clock(clock)
+        self._now = thread_clock(clock)
         self._c0 = self._now()
+        self._sync = sync
         self.waited = 0.0
         self.got: list = []  # every verdict `new` returned, in order
         self._seen = 0
 
     def t(self) -> float:
-        """The plan's simulated time now."""
-        return self.t_request + self._now() - self._c0 + self.waited
+        """The plan's simulated time now; with ``sync``, once the poster has got as far."""
+        t = self.t_request + self._now() - self._c0 + self.waited
+        if self._sync:
+            with self.board._cond:
+                while not self.board.reached(t):
+                    self.board._cond.wait(SYNC_POLL_S)
+        return t
 
     def new(self) -> list:
         """The verdicts visible by now that were not returned before, in the poster's order."""

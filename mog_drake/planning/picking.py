@@ -310,7 +310,7 @@ def next_pick(
     each group it simulates (its claim), then each verdict.
 
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
-    that much CPU time on the decision and holds a verified partial lift, no more groups are
+    that much time on the decision, on ``planner.clock`` (its CPU time, or its modelled time), and holds a verified partial lift, no more groups are
     planned and no more candidates simulated: the partial lift is taken."""
     spec = spec or PlannerSpec()
     spec.check()
@@ -342,7 +342,7 @@ def next_pick(
         return d
     mode, last_resort = spec.mode, spec.last_resort
     t0 = time.perf_counter()
-    deadline = time.thread_time() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
+    deadline = planner.clock() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
     if len(scene) == 0:
         # Something the perception could not recognise is not a clear table.
         blobs = unrecognised_scene(scene) if grasp_unrecognised else None
@@ -374,7 +374,7 @@ def next_pick(
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
-        if best is not None and deadline is not None and time.thread_time() > deadline:
+        if best is not None and deadline is not None and planner.clock() > deadline:
             break  # past the budget: the verified partial lift in hand
         res = None
         if failures is not None:

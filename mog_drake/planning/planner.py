@@ -165,6 +165,8 @@ class GraspPlanner:
     ):
         self.verifier = verifier
         self.config = config or PlannerConfig()
+        # The clock of ``plan``'s ``deadline`` (read on the planning thread).
+        self.clock = time.thread_time
         self.gripper = gripper or GripperGeometry()
         # Regions of the table (xmin, xmax, ymin, ymax) the open jaws must not enter: the
         # cell's fixtures (the bin), which the physics check does not model.
@@ -191,8 +193,8 @@ class GraspPlanner:
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
-        goes on where the earlier one stopped. ``deadline``: a time of this thread's CPU clock
-        (`time.thread_time`) past which no more candidates are simulated once a verified grasp
+        goes on where the earlier one stopped. ``deadline``: a time of this thread's ``clock``
+        (its CPU time unless set: `mog_drake.planning.clock.caller_clock`) past which no more candidates are simulated once a verified grasp
         is in hand: this plan's partial lift, or (``fallback``) the caller's. ``stop()``: true
         once no more candidates are to be simulated (the plan is cut short: its caller no
         longer needs it)."""
@@ -259,7 +261,7 @@ class GraspPlanner:
         for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
                 break
-            if deadline is not None and (fallback or best_lift is not None) and time.thread_time() > deadline:
+            if deadline is not None and (fallback or best_lift is not None) and self.clock() > deadline:
                 cut = True
                 break
             if stop is not None and stop():

@@ -24,6 +24,7 @@ class GraspResult:
     sim_time: float = 0.0  # simulated seconds
     wall_time: float = 0.0  # seconds of computation (includes a plant build if one was needed)
     built: bool = False  # whether this check had to build a plant
+    bodies: int = 0  # object bodies simulated (0: none, or not told)
     error: str = ""
     # False when the check stopped early because its verdict was already certain: ``lifted``
     # is then only what was in the air at that moment, not objects held to the end.

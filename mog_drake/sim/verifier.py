@@ -21,6 +21,7 @@ from mog_drake.geometry import GripperGeometry, objects_at_grasp, objects_in_rea
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import ease as _smooth
 from mog_drake.geometry.push import near_path, push_duration
+from mog_drake.planning.clock import WorkCost, charge
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -46,8 +47,9 @@ class VerifierConfig:
     hold_time: float = 0.20  # s, held in the air before the verdict (a slipping 20 g prism
     # falls 0.2 m in that time, so anything still above the threshold is held)
     lifted_fraction: float = 0.5  # an object is lifted if it rose by this fraction of the lift
-    # CPU seconds this process may spend on one check before it is abandoned. CPU time, not
-    # wall time: a process starved by a busy machine must not turn waiting into a verdict.
+    # CPU seconds the checking thread may spend on one check before it is abandoned. CPU time,
+    # not wall time: a thread starved by a busy machine must not turn waiting into a verdict;
+    # the thread's, not the process's: planning runs beside the station's physics.
     cpu_budget: float = 10.0
     reach_margin: float = 0.02  # m, extra radius when choosing which objects to simulate
     # Which objects a check simulates besides the group: "group", every object the jaws of
@@ -240,16 +242,25 @@ class DrakeVerifier:
     """The physics grasp check (implements the `Verifier` protocol).
 
     ``check(scene, group, grasp)`` returns a `GraspResult`. Faults are results: a solver
-    failure, a non-finite state, an object leaving the table or a run past the wall budget
-    gives success=False with an error saying what happened.
+    failure, a non-finite state, an object leaving the table or a run past the CPU budget
+    (of the calling thread) gives success=False with an error saying what happened.
+
+    ``cost`` (`mog_drake.planning.clock.WorkCost`, for ``latency.mode: modelled``): each
+    simulation, a check's or a push's, charges its modelled cost to the calling thread's
+    modelled clock as it ends.
     """
 
     def __init__(
-        self, config: VerifierConfig | None = None, gripper: GripperGeometry | None = None, meshcat=None
+        self,
+        config: VerifierConfig | None = None,
+        gripper: GripperGeometry | None = None,
+        meshcat=None,
+        cost: WorkCost | None = None,
     ):
         self.config = config or VerifierConfig()
         self.gripper = gripper or GripperGeometry()
         self.meshcat = meshcat
+        self.cost = cost
         if self.config.bodies not in ("group", "grasp"):
             raise MogError(f"verifier bodies must be 'group' or 'grasp', got {self.config.bodies!r}")
         self._sims: dict = {}  # key -> _GroupSim, least recently used first
@@ -306,10 +317,10 @@ class DrakeVerifier:
         for joint, q in zip((j[0], j[1], j[2], j[4], j[5]), (*push.start, sim.script.z_grasp, -f, f)):
             joint.set_translation(pc, q)
         j[3].set_angle(pc, push.yaw)
-        cpu_deadline = time.process_time() + self.config.cpu_budget
+        cpu_deadline = time.thread_time() + self.config.cpu_budget
 
         def monitor(root_context):
-            if time.process_time() > cpu_deadline:
+            if time.thread_time() > cpu_deadline:
                 return EventStatus.Failed(None, f"CPU budget of {self.config.cpu_budget:g} s exceeded")
             return EventStatus.Succeeded()
 
@@ -322,6 +333,7 @@ class DrakeVerifier:
             return PushResult(error=f"simulation failed: {msg}", wall_time=time.perf_counter() - t0)
         finally:
             sim.simulator.clear_monitor()
+            self._charge(sim.context.get_time(), len(ids), True)
         objects, moved, errors = list(scene.objects), {}, []
         x0, x1, y0, y1 = scene.table
         for i, body in sim.bodies.items():
@@ -365,8 +377,14 @@ class DrakeVerifier:
             )
         sim, built = self._sim_for(scene, group, grasp)
         result = self._run(sim, group, grasp, t0)
-        result.built = built
+        result.built, result.bodies = built, len(sim.bodies)
+        self._charge(result.sim_time, len(sim.bodies), built)
         return result
+
+    def _charge(self, sim_time: float, bodies: int, built: bool) -> None:
+        """Charges a simulation's modelled cost to the calling thread (with a ``cost``)."""
+        if self.cost is not None:
+            charge(self.cost.of(sim_time, bodies, built))
 
     def _run(self, sim: _GroupSim, group, grasp, t0: float) -> GraspResult:
         cfg, plant, pc = self.config, sim.plant, sim.plant_context
@@ -384,7 +402,7 @@ class DrakeVerifier:
         j[3].set_angle(pc, grasp[2])  # yaw
         timeline = cfg.timeline(g)
         t_end = timeline["end"]
-        cpu_deadline = time.process_time() + cfg.cpu_budget
+        cpu_deadline = time.thread_time() + cfg.cpu_budget
         status = {"error": "", "early": ""}
         group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
         z_joint = j[2]
@@ -420,7 +438,7 @@ class DrakeVerifier:
             if not np.all(np.isfinite(q)):
                 status["error"] = f"non-finite state at t = {t:.3f} s"
                 return EventStatus.Failed(None, status["error"])
-            if time.process_time() > cpu_deadline:
+            if time.thread_time() > cpu_deadline:
                 status["error"] = f"CPU budget of {cfg.cpu_budget:g} s exceeded at t = {t:.3f} s"
                 return EventStatus.Failed(None, status["error"])
             if cfg.early_exit and t > timeline["lift0"]:

@@ -16,45 +16,55 @@ Diagram's thread waits at most about that long for it.
 Simulated time (`LatencyConfig`): a result requested at simulated time t becomes visible at
 t + latency, the latency being the job's measured wall time (``measured``) or a fixed time
 per stage (``fixed``), for runs comparable across machines, or the CPU time of the job's
-thread (``cpu``). ``cpu`` is what the job would take on a core of its own, as on a cell where
+thread (``cpu``), or its modelled time (``modelled``: planning's physics costed by a model,
+perception a fixed time; `mog_drake.planning.clock`), for runs that are the same under any
+load. ``cpu`` is what the job would take on a core of its own, as on a cell where
 the arm is real: in simulation, the simulator's own physics and other runs on the machine
 compete with the job for cores and stretch its wall time, but not its CPU time. (Drake's
 physics and numpy here are single-threaded, so the thread's CPU time is the job's.) In a simulation that runs faster
 than the wall clock, a collecting event waits (on the wall clock) for a job still running
 until the job has run as long as simulated time has advanced since the request: then either
 the job is done, and its result is visible if its latency has passed, or it is not, and its
-latency is longer than the simulated time so far. Visibility is exact to one update period
+latency is longer than the simulated time so far (a modelled clock moves when a check ends). Visibility is exact to one update period
 whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
 visible at the first update after it is ready and its latency has passed.
 """
 
-import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-LATENCY_MODES = ("measured", "cpu", "fixed")
+from mog_drake.planning.clock import WorkCost, thread_clock
+
+LATENCY_MODES = ("measured", "cpu", "fixed", "modelled")
 
 
 @dataclass
 class LatencyConfig:
     """How long perception and planning take in simulated time: ``measured`` (each job's own
-    wall time), ``cpu`` (each job's CPU time) or ``fixed`` (``perception_s`` and
-    ``planning_s`` for every job)."""
+    wall time), ``cpu`` (each job's CPU time), ``fixed`` (``perception_s`` and ``planning_s``
+    for every job) or ``modelled`` (each planning job's physics costed by ``cost``, every
+    perception job ``perception_s``)."""
 
     mode: str = "measured"
     perception_s: float = 0.3
     planning_s: float = 2.0
+    # The modelled cost of the planner's physics on this project's 2-core machine, alone
+    # (fitted by `mog-drake bench checks`).
+    cost: WorkCost = field(default_factory=WorkCost)
 
     def of(self, stage: str) -> float | None:
         """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
-        return getattr(self, f"{stage}_s") if self.mode == "fixed" else None
+        if self.mode == "fixed" or (self.mode == "modelled" and stage == "perception"):
+            return getattr(self, f"{stage}_s")
+        return None
 
     @property
     def clock(self) -> str:
-        """What a measured latency is: "cpu" (the job thread's CPU time) or "wall"."""
-        return "cpu" if self.mode == "cpu" else "wall"
+        """What a measured latency is: "cpu" (the job thread's CPU time), "modelled" (its
+        modelled time) or "wall"."""
+        return self.mode if self.mode in ("cpu", "modelled") else "wall"
 
 
 class Job:
@@ -83,14 +93,13 @@ class Job:
 
     def elapsed(self) -> float:
         """Time the job has run so far on its clock (s): wall time since it was submitted, or
-        its thread's CPU time since it started, plus how late it started (`Worker.submit`'s
-        ``delay``)."""
+        its thread's CPU or modelled time since it started, plus how late it started
+        (`Worker.submit`'s ``delay``)."""
         if self.clock == "wall":
             return time.perf_counter() - self.t_submit
-        if "clock_id" not in self._started:
+        if "now" not in self._started:
             return 0.0
-        cpu = time.clock_gettime(self._started["clock_id"]) - self._started["cpu0"]
-        return cpu + self._started["delay"]
+        return self._started["now"]() - self._started["t0"] + self._started["delay"]
 
     def t_visible(self, latency: float | None) -> float:
         """The simulated time its result became visible (it must be visible): its request plus
@@ -121,7 +130,8 @@ class Job:
             except FutureTimeout:
                 if self.clock == "wall":
                     return False
-                # CPU time runs slower than the wall clock when the job shares a core: look again.
+                # CPU time runs slower than the wall clock when the job shares a core, and
+                # modelled time moves when a check ends: look again.
         return self.latency() <= waited + 1e-9
 
     def wall_time(self) -> float:
@@ -132,6 +142,11 @@ class Job:
         """The CPU time of the job's thread while it ran (s); it must be done."""
         return self.future.result()[2]
 
+    def clock_time(self) -> float:
+        """The job's time on its clock while it ran (s; the wall time on the wall clock); it
+        must be done."""
+        return self.future.result()[4]
+
     def waited(self) -> float:
         """Simulated time the job spent waiting for another job's results or for its thread,
         beyond its own clock (s; see `Worker.submit`'s ``waited`` and ``delay``); it must be
@@ -141,7 +156,7 @@ class Job:
     def latency(self) -> float:
         """The job's measured latency on its clock, its waits included (s); it must be
         done."""
-        return (self.cpu_time() if self.clock == "cpu" else self.wall_time()) + self.waited()
+        return (self.wall_time() if self.clock == "wall" else self.clock_time()) + self.waited()
 
     def result(self):
         return self.future.result()[0]
@@ -169,13 +184,15 @@ class Worker:
         started: dict = {}
 
         def run():
-            clock_id = time.pthread_getcpuclockid(threading.get_ident())
-            cpu0 = time.clock_gettime(clock_id)
+            cpu = thread_clock("cpu")
+            now = cpu if self._clock == "cpu" else thread_clock(self._clock)
+            cpu0, t0 = cpu(), now()
             late = delay() if delay is not None else 0.0
-            started.update(clock_id=clock_id, cpu0=cpu0, delay=late)
+            started.update(now=now, t0=t0, delay=late)
             out = fn(*args)
-            wall, cpu = time.perf_counter() - t_submit, time.clock_gettime(clock_id) - cpu0
-            return out, wall, cpu, late + (waited(out) if waited is not None else 0.0)
+            wall, c1, t1 = time.perf_counter() - t_submit, cpu(), now()
+            spent = c1 - cpu0 if now is cpu else t1 - t0
+            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), spent
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

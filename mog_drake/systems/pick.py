@@ -12,6 +12,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.errors import HardwareFault
 from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.planning.clock import caller_clock
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, camera_pose
 from mog_drake.station import MakeStation
@@ -46,7 +47,14 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     vcfg.cpu_budget = default.cpu_budget * max(
         1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
     )
-    return GraspPlanner(verifier or DrakeVerifier(vcfg), spec.grasp_planner(), keep_out=scenario.keep_out())
+    # Under latency.mode modelled its physics charges its modelled cost to the planning thread.
+    lat = scenario.latency
+    cost = lat.cost if lat.mode == "modelled" else None
+    planner = GraspPlanner(
+        verifier or DrakeVerifier(vcfg, cost=cost), spec.grasp_planner(), keep_out=scenario.keep_out()
+    )
+    planner.clock = caller_clock(lat.clock if lat.clock != "wall" else "cpu")  # decision_budget_s
+    return planner
 
 
 def arm_view(scenario: Scenario, intrinsics) -> ArmView:

@@ -240,7 +240,8 @@ class PlannerSystem(LeafSystem):
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
     def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post):
-        source = None if late is None else BoardReader(*late, self._clock)
+        # On the modelled clock the decision's reads are exact (`BoardReader`'s sync).
+        source = None if late is None else BoardReader(*late, self._clock, sync=self._clock == "modelled")
         if post is not None:
             post.start()  # its stamps count this thread's time from here
         try:

@@ -3,7 +3,8 @@
 `run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
 
 * geometry: the conditions and the candidate filter (`bench.geometry`)
-* verifier, agreement, hold, bodies, table, surface: the physics check (`bench.physics`)
+* verifier, agreement, hold, bodies, table, surface, checks: the physics check
+  (`bench.physics`; checks: its cost on the modelled clock against its CPU time)
 * perception, station, replanning, rest: rendered tables, the station's step, replanning,
   objects at rest on the station's table (`bench.station`)
 """
@@ -26,6 +27,7 @@ BENCHES = (
     "table",
     "surface",
     "rest",
+    "checks",
 )
 
 
@@ -91,6 +93,13 @@ def run(
         doc = bench_rest(scenes, seed, progress=bar)
         bar.close()
         return doc, rest_text(doc)
+    elif what == "checks":
+        from mog_drake.experiments.bench.physics import bench_checks, checks_text
+
+        bar = Progress(scenes, what, enabled=progress)
+        doc = bench_checks(scenes, seed, progress=bar)
+        bar.close()
+        return doc, checks_text(doc)
     elif what in ("bodies", "table", "surface"):
         from mog_drake.experiments.bench.physics import bench_pair, pair_text
 

@@ -403,3 +403,93 @@ def hold_text(doc: dict) -> str:
         f"settled {d['settled']['success']} lifted {d['settled']['lifted']}"
         for d in doc["differing"]
     )
+
+
+def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
+    """The modelled clock's cost of a physics check against its CPU time
+    (`mog_drake.planning.clock.WorkCost`). On each seeded isrr33 table (the scene seeds of
+    ``eval picking --seed``), as the station settled it, Alg. 1's decisions clear the table
+    without the robot (`station.clear_table`), and each check's CPU time on this thread, its
+    simulated time and its object bodies are recorded. Returns the least-squares fit of
+    ``check_s``, ``sim_s`` and ``body_sim_s`` (none negative) and, by bodies simulated, the
+    mean CPU per check against the fit's and the scenario's cost. Run it alone: CPU time is
+    stretched by anything else the machine runs."""
+    from mog_drake.experiments.bench.station import clear_table
+    from mog_drake.planning.clock import WorkCost
+    from mog_drake.scenario import ClutteredScene, Scenario
+    from mog_drake.station import scene_from_spec
+    from mog_drake.systems.pick import make_planner
+
+    sc = Scenario()
+    planner = make_planner(sc)
+    check, log = planner.verifier.check, []
+
+    def timed(scene, group, grasp):
+        c0 = time.thread_time()
+        r = check(scene, group, grasp)
+        if r.bodies:  # a simulation ran
+            log.append((time.thread_time() - c0, r.sim_time, r.bodies))
+        return r
+
+    planner.verifier.check = timed
+    for k in range(tables):
+        scene = scene_from_spec(ClutteredScene(seed=seed * 1_000_000 + k))
+        for _ in clear_table(scene, planner, sc.planner, seed * 1_000_000 + k):
+            pass
+        if progress:
+            progress(k + 1, tables)
+    if not log:
+        raise MogError("no physics check ran: nothing to fit")
+    cpu, sim, bodies = (np.array(c, dtype=float) for c in zip(*log))
+    X = np.c_[np.ones_like(sim), sim, sim * bodies]
+    names = ["check_s", "sim_s", "body_sim_s"]
+    keep = list(range(3))
+    while True:  # least squares, dropping a term that comes out negative
+        coef, *_ = np.linalg.lstsq(X[:, keep], cpu, rcond=None)
+        if (coef >= 0).all() or len(keep) == 1:
+            break
+        keep.pop(int(np.argmin(coef)))
+    fit = WorkCost(**{n: 0.0 for n in names})
+    for j, c in zip(keep, coef):
+        setattr(fit, names[j], max(0.0, float(c)))
+    now = sc.latency.cost
+    model = {
+        "fit": np.array([fit.of(s, int(b)) for s, b in zip(sim, bodies)]),
+        "scenario": np.array([now.of(s, int(b)) for s, b in zip(sim, bodies)]),
+    }
+    rows = []
+    for lo, hi in ((0, 3), (3, 5), (5, 7), (7, 9), (9, 1000)):
+        m = (bodies >= lo) & (bodies < hi)
+        if m.any():
+            rows.append(
+                {
+                    "bodies": f"{lo}-{hi - 1}" if hi < 1000 else f"{lo}+",
+                    "checks": int(m.sum()),
+                    "sim_s": round(float(sim[m].mean()), 2),
+                    "cpu_s": round(float(cpu[m].mean()), 3),
+                    "fit_s": round(float(model["fit"][m].mean()), 3),
+                    "scenario_s": round(float(model["scenario"][m].mean()), 3),
+                }
+            )
+    return {
+        "rows": rows,
+        "checks": len(log),
+        "fit": {n: round(getattr(fit, n), 4) for n in names},
+        "scenario": {n: getattr(now, n) for n in names},
+        "cpu_s": float(cpu.sum()),
+        **{f"{k}_s": float(v.sum()) for k, v in model.items()},
+        **{f"{k}_error": float(np.mean(np.abs(v - cpu) / cpu)) for k, v in model.items()},
+    }
+
+
+def checks_text(doc: dict) -> str:
+    from mog_drake.tables import format_table
+
+    fit = ", ".join(f"{k} {v:g}" for k, v in doc["fit"].items())
+    now = ", ".join(f"{k} {v:g}" for k, v in doc["scenario"].items())
+    return format_table(doc["rows"]) + (
+        f"\n{doc['checks']} checks: {doc['cpu_s']:.1f} s of CPU; the fit ({fit}) models "
+        f"{doc['fit_s']:.1f} s, each check off by {100 * doc['fit_error']:.0f} % on average; the "
+        f"scenario's latency.cost ({now}) models {doc['scenario_s']:.1f} s "
+        f"(off by {100 * doc['scenario_error']:.0f} %)"
+    )

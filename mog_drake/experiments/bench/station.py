@@ -123,6 +123,35 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
 FREE_PLANNING_S = 5.0
 
 
+def clear_table(scene, planner, spec, seed: int, remember: bool = True):
+    """Clears ``scene`` by decisions without the robot: plan (`next_pick`, its random draws
+    seeded with ``seed``; ``remember``: failed groups remembered across decisions), remove the
+    objects the physics check lifted, plan again, until the table is empty, a decision finds
+    no grasp, or three decisions per object. Yields (decision, its CPU time on this thread,
+    the table left after it)."""
+    import time
+
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.scenes import Scene
+
+    rng, failures = np.random.default_rng(seed), () if remember else None
+    for _ in range(3 * len(scene)):
+        if not len(scene):
+            return
+        c0 = time.thread_time()
+        d = next_pick(scene, planner, spec, rng=rng, failures=failures)
+        cpu = time.thread_time() - c0
+        failures = d.failures if remember else None
+        if d.status == "grasp":
+            gone = set(d.expected) or set(d.group)
+            scene = Scene(
+                [o for i, o in enumerate(scene.objects) if i not in gone], scene.library, scene.table
+            )
+        yield d, cpu, scene
+        if d.status != "grasp":
+            return
+
+
 def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: float = 0.0) -> list[dict]:
     """Planning time of one table's decisions, replayed without the robot: on each seeded
     isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
@@ -133,12 +162,9 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
     Per table and setting: decisions, objects per decision, physics checks, planning CPU
     (this thread's) and the part of each decision's CPU past FREE_PLANNING_S summed (what
     the arm would wait with no lookahead)."""
-    import time
     from dataclasses import replace
 
-    from mog_drake.planning.picking import next_pick
     from mog_drake.scenario import ClutteredScene, Scenario
-    from mog_drake.scenes import Scene
     from mog_drake.sim.verifier import DrakeVerifier
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
@@ -155,33 +181,23 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
             scene = scene_from_spec(ClutteredScene(seed=table_seed))
-            rng, failures = np.random.default_rng(table_seed), () if setting != "before" else None
             n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
-            cpu, past = 0.0, 0.0
-            while len(scene) and decisions < 3 * n0:
-                c0 = time.thread_time()
-                d = next_pick(scene, planner, sc.planner, rng=rng, failures=failures)
-                c = time.thread_time() - c0
+            cpu, past, n_left = 0.0, 0.0, n0
+            for d, c, left in clear_table(scene, planner, sc.planner, table_seed, setting != "before"):
+                n_left = len(left)
                 cpu += c
                 past += max(0.0, c - FREE_PLANNING_S)
-                failures = d.failures if failures is not None else None
                 decisions += 1
                 checks += d.physics_checks
                 remembered += d.remembered
                 planning += d.planning_time
-                if d.status != "grasp":
-                    break
-                gone = set(d.expected) or set(d.group)
-                scene = Scene(
-                    [o for i, o in enumerate(scene.objects) if i not in gone], scene.library, scene.table
-                )
             rows.append(
                 {
                     "table_seed": table_seed,
                     "setting": setting,
                     "decisions": decisions,
-                    "objects_per_decision": round((n0 - len(scene)) / max(decisions, 1), 2),
-                    "objects_left": len(scene),
+                    "objects_per_decision": round((n0 - n_left) / max(decisions, 1), 2),
+                    "objects_left": n_left,
                     "physics_checks": checks,
                     "groups_remembered": remembered,
                     "planning_s": round(planning, 1),
