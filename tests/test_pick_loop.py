@@ -442,25 +442,39 @@ def test_on_the_modelled_clock_a_decision_sees_each_verdict_posted_by_its_time_h
 
 class CostlyChecks:
     """A verifier that fails every grasp of a group holding object ``i`` and lifts any other,
-    each check charging ``cost`` s to the modelled clock after a random wall-clock pause (a
-    machine under changing load)."""
+    each check charging ``cost`` s to the modelled clock after a wall-clock pause of
+    ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread)."""
 
-    def __init__(self, i, cost, seed):
-        self.i, self.cost, self.rng = i, cost, np.random.default_rng(seed)
+    def __init__(self, i, cost, pauses):
+        self.i, self.cost, self.pauses = i, cost, pauses
 
     def check(self, scene, group, grasp):
+        import threading
+
         from mog_drake.planning.clock import charge
 
-        time.sleep(float(self.rng.uniform(0.0, 0.03)))
+        time.sleep(self.pauses[threading.current_thread().name.split("_")[0]])
         charge(self.cost)
         ok = self.i not in group
         return GraspResult(ok, lifted=list(group) if ok else [])
 
 
-def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tmp_path):
-    """mog, four objects, each check 4 s of modelled time, its wall time random: the
-    lookahead is late and its board is read. Two runs with different wall-clock pauses give
-    the same attempts at the same simulated times, with the same waits."""
+def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tmp_path, monkeypatch):
+    """mog, four objects, each check 4 s of modelled time: the lookahead is late and its
+    board is read, by a synced reader (see the test above). Two runs, one whose lookahead's
+    checks are slowed on the wall clock and one whose decisions' are, give the same attempts
+    at the same simulated times, with the same waits."""
+    import mog_drake.systems.planner as planner_module
+    from mog_drake.planning.board import BoardReader
+
+    synced = []
+
+    class Reader(BoardReader):
+        def __init__(self, *a, **kw):
+            super().__init__(*a, **kw)
+            synced.append(self._sync)
+
+    monkeypatch.setattr(planner_module, "BoardReader", Reader)
     objects = [
         ("large_hexagon", 0.05, -0.10, 0.3),
         ("blue_quad", -0.12, 0.12, 0.9),
@@ -470,10 +484,11 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     truth = make_scene(objects)
     truth.save(tmp_path / "scene.yaml")
     runs = []
-    for seed in (1, 2):
+    for slow in ("lookahead", "planner"):
         sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
         sc.planner.mode = "mog"
-        d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, seed))
+        pauses = {"planner": 0.0, "lookahead": 0.0, slow: 0.05}
+        d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, pauses))
         sim = Simulator(d)
         ctx = sim.get_mutable_context()
         c = parts["controller"]
@@ -485,7 +500,8 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
         keys = ("start", "group", "grasp", "lookahead", "waited", "from_board")
         runs.append([{k: a.get(k) for k in keys} for a in c.state(c.GetMyContextFromRoot(ctx)).attempts])
     assert len(runs[0]) == 3 and runs[0] == runs[1]
-    assert any(a["lookahead"] == "merged" or a["waited"] > 0 for a in runs[0]), runs[0]
+    assert any(a["lookahead"] == "merged" and a["from_board"] > 0 for a in runs[0]), runs[0]
+    assert synced and all(synced)
 
 
 class FailsGroupsWith:
