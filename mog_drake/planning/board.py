@@ -27,7 +27,7 @@ wall clock than the decision looks, though early enough in simulated time, is mi
 the decision plans that group itself. So reading the board never gives a decision anything
 it could not have had on a real cell, where the two run on two cores. On the modelled clock
 the reads are exact: a decision that reads at simulated time t first waits (on the wall
-clock) until the poster's modelled time has passed t or it has finished, so it sees all it
+clock) until the poster's modelled time is past t or it has finished, so it sees all it
 would on a real cell, and the same on every run (``sync``).
 """
 
@@ -85,11 +85,12 @@ class Board:
         return self.t_request + self._now() - self._c0
 
     def reached(self, t: float) -> bool:
-        """Whether the poster has finished or its simulated time has passed ``t``, read from
-        any thread (the board's lock held); not before it starts."""
+        """Whether the poster has finished or its simulated time is past ``t``, read from any
+        thread (the board's lock held); not before it starts. Past, not at: its work between
+        two checks costs no modelled time, so it may yet claim or post at ``t`` itself."""
         if self.end is not None:
             return True
-        return self._now is not None and self.t_request + self._now() - self._c0 >= t - 1e-9
+        return self._now is not None and self.t_request + self._now() - self._c0 > t + 1e-9
 
     def claim(self, group, around) -> None:
         """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
