@@ -105,6 +105,23 @@ def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():
     assert ref.config.hold_time == fast.config.hold_time == Scenario().planner.hold_s
 
 
+def test_the_checks_bench_fits_the_modelled_cost_of_a_check_and_drops_a_negative_term():
+    """`bench checks`: checks made up to cost 0.2 + 0.13 s per body and simulated second
+    give back those terms; checks that get cheaper with simulated time give a slope of 0 and
+    the mean as the cost of a check."""
+    import numpy as np
+
+    from mog_drake.experiments.bench.physics import fit_work_cost
+
+    rng = np.random.default_rng(0)
+    sim, bodies = rng.uniform(0.6, 3.5, 200), rng.integers(1, 11, 200)
+    fit = fit_work_cost(0.2 + 0.13 * sim * bodies, sim, bodies)
+    assert (fit.check_s, fit.sim_s, fit.body_sim_s) == pytest.approx((0.2, 0.0, 0.13), abs=1e-6)
+    falling = 2.0 - 0.1 * sim
+    fit = fit_work_cost(falling, sim, np.zeros(200))
+    assert fit.sim_s == 0.0 and fit.body_sim_s == 0.0 and fit.check_s == pytest.approx(falling.mean())
+
+
 def test_each_pair_bench_changes_its_one_setting_and_leaves_the_planners_untouched():
     """`bench bodies`, `table` and `surface`: each side of a pair is the planner's check with
     that one setting changed, found by its path; the planner's own config is not changed."""

@@ -415,7 +415,6 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
     mean CPU per check against the fit's and the scenario's cost. Run it alone: CPU time is
     stretched by anything else the machine runs."""
     from mog_drake.experiments.bench.station import clear_table
-    from mog_drake.planning.clock import WorkCost
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
@@ -441,18 +440,8 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
     if not log:
         raise MogError("no physics check ran: nothing to fit")
     cpu, sim, bodies = (np.array(c, dtype=float) for c in zip(*log))
-    X = np.c_[np.ones_like(sim), sim, sim * bodies]
+    fit, now = fit_work_cost(cpu, sim, bodies), sc.latency.cost
     names = ["check_s", "sim_s", "body_sim_s"]
-    keep = list(range(3))
-    while True:  # least squares, dropping a term that comes out negative
-        coef, *_ = np.linalg.lstsq(X[:, keep], cpu, rcond=None)
-        if (coef >= 0).all() or len(keep) == 1:
-            break
-        keep.pop(int(np.argmin(coef)))
-    fit = WorkCost(**{n: 0.0 for n in names})
-    for j, c in zip(keep, coef):
-        setattr(fit, names[j], max(0.0, float(c)))
-    now = sc.latency.cost
     model = {
         "fit": np.array([fit.of(s, int(b)) for s, b in zip(sim, bodies)]),
         "scenario": np.array([now.of(s, int(b)) for s, b in zip(sim, bodies)]),
@@ -480,6 +469,27 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
         **{f"{k}_s": float(v.sum()) for k, v in model.items()},
         **{f"{k}_error": float(np.mean(np.abs(v - cpu) / cpu)) for k, v in model.items()},
     }
+
+
+def fit_work_cost(cpu, sim, bodies):
+    """The `WorkCost` whose cost of each simulation (``sim`` simulated seconds, ``bodies``
+    object bodies) is nearest ``cpu`` in least squares, no term negative: a term that comes
+    out negative is dropped (set to 0) and the rest fitted again."""
+    from mog_drake.planning.clock import WorkCost
+
+    cpu, sim, bodies = (np.asarray(v, dtype=float) for v in (cpu, sim, bodies))
+    X = np.c_[np.ones_like(sim), sim, sim * bodies]
+    names = ["check_s", "sim_s", "body_sim_s"]
+    keep = list(range(3))
+    while True:
+        coef, *_ = np.linalg.lstsq(X[:, keep], cpu, rcond=None)
+        if (coef >= 0).all() or len(keep) == 1:
+            break
+        keep.pop(int(np.argmin(coef)))
+    fit = WorkCost(**{n: 0.0 for n in names})
+    for j, c in zip(keep, coef):
+        setattr(fit, names[j], max(0.0, float(c)))
+    return fit
 
 
 def checks_text(doc: dict) -> str:
