@@ -36,9 +36,9 @@ class WorkCost:
     sim_s: float = 0.097
     body_sim_s: float = 0.134
 
-    def of(self, sim_time: float, bodies: int, built: bool = False) -> float:
+    def of(self, sim_time: float, bodies: int) -> float:
         """The modelled seconds of one simulation of ``sim_time`` simulated seconds with
-        ``bodies`` object bodies (``built``: its plant was built for it; not costed)."""
+        ``bodies`` object bodies (building its plant, if it was built, is not costed)."""
         return self.check_s + max(0.0, sim_time) * (self.sim_s + self.body_sim_s * bodies)
 
 

@@ -310,7 +310,8 @@ def next_pick(
     each group it simulates (its claim), then each verdict.
 
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
-    that much time on the decision, on ``planner.clock`` (its CPU time, or its modelled time), and holds a verified partial lift, no more groups are
+    that much time on the decision, on ``planner.clock`` (its CPU time, or its modelled
+    time), and holds a verified partial lift, no more groups are
     planned and no more candidates simulated: the partial lift is taken."""
     spec = spec or PlannerSpec()
     spec.check()

@@ -333,7 +333,7 @@ class DrakeVerifier:
             return PushResult(error=f"simulation failed: {msg}", wall_time=time.perf_counter() - t0)
         finally:
             sim.simulator.clear_monitor()
-            self._charge(sim.context.get_time(), len(ids), True)
+            self._charge(sim.context.get_time(), len(ids))
         objects, moved, errors = list(scene.objects), {}, []
         x0, x1, y0, y1 = scene.table
         for i, body in sim.bodies.items():
@@ -378,13 +378,13 @@ class DrakeVerifier:
         sim, built = self._sim_for(scene, group, grasp)
         result = self._run(sim, group, grasp, t0)
         result.built, result.bodies = built, len(sim.bodies)
-        self._charge(result.sim_time, len(sim.bodies), built)
+        self._charge(result.sim_time, len(sim.bodies))
         return result
 
-    def _charge(self, sim_time: float, bodies: int, built: bool) -> None:
+    def _charge(self, sim_time: float, bodies: int) -> None:
         """Charges a simulation's modelled cost to the calling thread (with a ``cost``)."""
         if self.cost is not None:
-            charge(self.cost.of(sim_time, bodies, built))
+            charge(self.cost.of(sim_time, bodies))
 
     def _run(self, sim: _GroupSim, group, grasp, t0: float) -> GraspResult:
         cfg, plant, pc = self.config, sim.plant, sim.plant_context
