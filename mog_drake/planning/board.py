@@ -45,8 +45,8 @@ class Board:
     """What a planning thread (the poster) shares while it runs: its claims (the group it is
     planning, from when to when) and its verdicts, each stamped with the simulated time it
     happened: ``t_request`` plus the poster's time on ``clock`` since `start` ("cpu", "wall",
-    "modelled", or a function, for tests). The poster calls `start`, then `claim` / `post`, then `finish`;
-    any other thread reads it through a `BoardReader`."""
+    "modelled", or a function, for tests). The poster calls `start`, then `claim` / `post`,
+    then `finish`; any other thread reads it through a `BoardReader`."""
 
     def __init__(
         self, t_request: float, clock: str | Callable[[], float] = "wall", after: Board | None = None
@@ -82,6 +82,10 @@ class Board:
     def stamp(self) -> float:
         """The poster's simulated time now (on its own thread)."""
         self.start()
+        return self._at()
+
+    def _at(self) -> float:
+        """The poster's simulated time now, once it has started (from any thread)."""
         return self.t_request + self._now() - self._c0
 
     def reached(self, t: float) -> bool:
@@ -90,7 +94,7 @@ class Board:
         two checks costs no modelled time, so it may yet claim or post at ``t`` itself."""
         if self.end is not None:
             return True
-        return self._now is not None and self.t_request + self._now() - self._c0 > t + 1e-9
+        return self._now is not None and self._at() > t + 1e-9
 
     def claim(self, group, around) -> None:
         """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""

@@ -21,8 +21,6 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-CLOCKS = ("wall", "cpu", "modelled")
-
 
 @dataclass
 class WorkCost:

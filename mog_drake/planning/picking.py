@@ -311,8 +311,8 @@ def next_pick(
 
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
     that much time on the decision, on ``planner.clock`` (its CPU time, or its modelled
-    time), and holds a verified partial lift, no more groups are
-    planned and no more candidates simulated: the partial lift is taken."""
+    time), and holds a verified partial lift, no more groups are planned and no more
+    candidates simulated: the partial lift is taken."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":

@@ -195,8 +195,8 @@ class GraspPlanner:
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
         goes on where the earlier one stopped. ``deadline``: a time of this thread's ``clock``
         (its CPU time unless set: `mog_drake.planning.clock.caller_clock`) past which no more
-        candidates are simulated once a verified grasp
-        is in hand: this plan's partial lift, or (``fallback``) the caller's. ``stop()``: true
+        candidates are simulated once a verified grasp is in hand: this plan's partial lift,
+        or (``fallback``) the caller's. ``stop()``: true
         once no more candidates are to be simulated (the plan is cut short: its caller no
         longer needs it)."""
         method = method or self.config.method

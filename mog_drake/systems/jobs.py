@@ -25,8 +25,8 @@ physics and numpy here are single-threaded, so the thread's CPU time is the job'
 than the wall clock, a collecting event waits (on the wall clock) for a job still running
 until the job has run as long as simulated time has advanced since the request: then either
 the job is done, and its result is visible if its latency has passed, or it is not, and its
-latency is longer than the simulated time so far (a modelled clock moves when a check ends). Visibility is exact to one update period
-whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
+latency is longer than the simulated time so far (a modelled clock moves when a check
+ends). Visibility is exact to one update period whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
 visible at the first update after it is ready and its latency has passed.
 """
 

@@ -414,6 +414,8 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
     ``check_s``, ``sim_s`` and ``body_sim_s`` (none negative) and, by bodies simulated, the
     mean CPU per check against the fit's and the scenario's cost. Run it alone: CPU time is
     stretched by anything else the machine runs."""
+    from dataclasses import asdict
+
     from mog_drake.experiments.bench.station import clear_table
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station import scene_from_spec
@@ -441,7 +443,6 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
         raise MogError("no physics check ran: nothing to fit")
     cpu, sim, bodies = (np.array(c, dtype=float) for c in zip(*log))
     fit, now = fit_work_cost(cpu, sim, bodies), sc.latency.cost
-    names = ["check_s", "sim_s", "body_sim_s"]
     model = {
         "fit": np.array([fit.of(s, int(b)) for s, b in zip(sim, bodies)]),
         "scenario": np.array([now.of(s, int(b)) for s, b in zip(sim, bodies)]),
@@ -463,8 +464,8 @@ def bench_checks(tables: int = 5, seed: int = 0, progress=None) -> dict:
     return {
         "rows": rows,
         "checks": len(log),
-        "fit": {n: round(getattr(fit, n), 4) for n in names},
-        "scenario": {n: getattr(now, n) for n in names},
+        "fit": {n: round(v, 4) for n, v in asdict(fit).items()},
+        "scenario": asdict(now),
         "cpu_s": float(cpu.sum()),
         **{f"{k}_s": float(v.sum()) for k, v in model.items()},
         **{f"{k}_error": float(np.mean(np.abs(v - cpu) / cpu)) for k, v in model.items()},
