@@ -462,8 +462,10 @@ class CostlyChecks:
 def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tmp_path, monkeypatch):
     """mog, four objects, each check 4 s of modelled time: the lookahead is late and its
     board is read, by a synced reader (see the test above). Two runs, one whose lookahead's
-    checks are slowed on the wall clock and one whose decisions' are, give the same attempts
-    at the same simulated times, with the same waits."""
+    checks are slowed on the wall clock and one whose planner thread's are, give the same
+    attempts at the same simulated times, with the same waits; so do two with the lookahead's
+    assistant on the planner's thread (assist_lookahead), which plans groups for the
+    lookahead and changes when the grasps come, not which they are."""
     import mog_drake.systems.planner as planner_module
     from mog_drake.planning.board import BoardReader
 
@@ -484,9 +486,9 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     truth = make_scene(objects)
     truth.save(tmp_path / "scene.yaml")
     runs = []
-    for slow in ("lookahead", "planner"):
+    for helper, slow in ((False, "lookahead"), (False, "planner"), (True, "lookahead"), (True, "planner")):
         sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
-        sc.planner.mode = "mog"
+        sc.planner.mode, sc.planner.assist_lookahead = "mog", helper
         pauses = {"planner": 0.0, "lookahead": 0.0, slow: 0.05}
         d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, pauses))
         sim = Simulator(d)
@@ -497,10 +499,14 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
                 sim.AdvanceTo(ctx.get_time() + 0.05)
         finally:
             _close(parts)
-        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board")
+        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board", "helped")
         runs.append([{k: a.get(k) for k in keys} for a in c.state(c.GetMyContextFromRoot(ctx)).attempts])
     assert len(runs[0]) == 3 and runs[0] == runs[1]
     assert any(a["lookahead"] == "merged" and a["from_board"] > 0 for a in runs[0]), runs[0]
+    assert len(runs[2]) == 3 and runs[2] == runs[3]
+    assert any(a["helped"] > 0 for a in runs[2]) and not any(a["helped"] for a in runs[0])
+    for k in ("group", "grasp"):
+        assert [a[k] for a in runs[2]] == [a[k] for a in runs[0]]
     assert synced and all(synced)
 
 
@@ -545,3 +551,31 @@ def test_a_tables_first_decision_is_assisted_and_alg1s_choice_is_unchanged(tmp_p
     assert 0 not in firsts[True]["group"]  # no group holding object 0 has a grasp
     for k in ("group", "grasp", "expected"):
         assert firsts[True][k] == firsts[False][k]
+
+
+def test_a_reader_that_yields_sees_what_was_posted_before_its_time_and_waits_only_until_then():
+    """The poster (modelled clock) is at 1.0 s and has posted a verdict then. A synced reader
+    at 1.0 s that yields sees nothing and does not wait; one that does not yield waits (on the
+    wall clock) until the poster is past 1.0 s, then sees the verdict. So two threads reading
+    each other's boards synced, one yielding, never wait for each other at a tie."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader
+
+    now = [0.0]
+    board = Board(0.0, clock=lambda: now[0])
+    board.start()
+    now[0] = 1.0
+    board.post("verdict")
+    assert BoardReader(board, 1.0, lambda: 0.0, sync=True, yields=True).new() == []
+    got = []
+    reader = threading.Thread(target=lambda: got.append(BoardReader(board, 1.0, lambda: 0.0, sync=True).new()))
+    reader.start()
+    reader.join(0.2)
+    assert reader.is_alive() and got == []  # waiting for the poster to be past 1.0 s
+    now[0] = 1.5
+    reader.join(5.0)
+    assert got == [["verdict"]]
+    # The one that yields sees it once past its time, and never what was posted at it.
+    assert BoardReader(board, 1.2, lambda: 0.0, sync=True, yields=True).new() == ["verdict"]
+    assert BoardReader(board, 1.0, lambda: 0.0, sync=True, yields=True).new() == []

@@ -802,3 +802,96 @@ def test_the_assistant_plans_every_other_group_the_decision_must_simulate():
     assert n == 1 and len(v.asked) == 1 and board.end == 1.0
     n, v, board = run(0.0, main, PlannerConfig("gp", max_physics=3))
     assert n == 0 and len(v.asked) == 1 and board._entries == [] and board.end == 1.0
+
+
+def test_the_lookahead_replays_its_assistants_verdicts_and_posts_them_on_its_own_board():
+    """Four lone objects, no grasp for any, one physics check per group (1 s of the
+    lookahead's clock each). Its assistant on the planner's core posted the second and fourth
+    groups' verdicts at 1 s and 2 s: the lookahead simulates only the first and the third,
+    replays the other two, and posts all four on its own board (the next decision reads
+    only that one)."""
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import PickDecision, lookahead, next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
+    order = [p.group for p in alone.plans]
+    known = {f.group: f for f in alone.failures}
+    helper_time = [0.0]
+    helper = Board(0.0, clock=lambda: helper_time[0])
+    helper.start()
+    for k, stamp in ((1, 1.0), (3, 2.0)):
+        helper.claim(order[k], known[order[k]].around)
+        helper_time[0] = stamp
+        helper.post(known[order[k]])
+    helper.finish()
+    v = FakeVerifier()
+    clock = lambda: float(len(v.asked))  # noqa: E731
+    board = Board(0.0, clock)
+    decision = PickDecision("grasp", group=(), expected=())  # it grasps nothing: the same table
+    memory = lookahead(
+        scene, decision, GraspPlanner(v, cfg), spec, board=board, late=BoardReader(helper, 0.0, clock)
+    )
+    assert len(v.asked) == 2  # the first group, then the third
+    assert sorted(f.group for f in memory) == sorted(order)
+    assert sorted(e.group for _, e in board._entries) == sorted(order)
+    replayed = [e for _, e in board._entries if e.group in (order[1], order[3])]
+    assert all(e.result.tested == 0 for e in replayed)  # replayed, not simulated
+    # Without its assistant's board, it simulates all four.
+    v = FakeVerifier()
+    lookahead(scene, decision, GraspPlanner(v, cfg), spec, board=Board(0.0, lambda: 0.0))
+    assert len(v.asked) == 4
+
+
+def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_time():
+    """Four lone objects, no grasp for any, one check per group (1 s of the assistant's clock
+    each); the lookahead plans the first group and never finishes here. The assistant plans
+    the second group from 0 to 1 s, then asks whether the next image came by 1 s: it waits
+    (on the wall clock) for the Diagram to get there. An image at 1.0 s stops it there; one
+    at 1.01 s comes after it has begun the fourth group, whose check it finishes. However
+    late on the wall clock the Diagram gets there, the same is decided."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader, Horizon
+    from mog_drake.planning.picking import assist, next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
+    order = [p.group for p in alone.plans]
+    known = {f.group: f for f in alone.failures}
+    for image, planned in ((1.0, 1), (1.01, 2)):
+        for wall_delay in (0.0, 0.2):
+            main = Board(0.0, clock=lambda: 0.0)
+            main.start()
+            main.claim(order[0], known[order[0]].around)
+            horizon = Horizon()
+            horizon.reach(0.0)
+
+            def diagram(horizon=horizon, image=image, wall_delay=wall_delay):
+                time.sleep(wall_delay)
+                for t in (0.5, 1.0, 1.01):
+                    horizon.reach(t, image=t == image)
+
+            thread = threading.Thread(target=diagram)
+            thread.start()
+            v = FakeVerifier()
+            clock = lambda v=v: float(len(v.asked))  # noqa: E731
+            board = Board(0.0, clock)
+            n = assist(
+                scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, clock), board, until=horizon.came
+            )
+            thread.join()
+            assert n == planned and board.end == float(planned), (image, wall_delay)
+            assert [e.group for _, e in board._entries] == [order[1], order[3]][:planned]
+    # The run ends (the Diagram is closed) before any image: it stops at once.
+    horizon = Horizon()
+    horizon.close()
+    main = Board(0.0, clock=lambda: 0.0)
+    main.start()
+    v = FakeVerifier()
+    n = assist(scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, lambda: 0.0), Board(0.0), until=horizon.came)
+    assert n == 0 and v.asked == []

@@ -33,6 +33,7 @@ would on a real cell, and the same on every run (``sync``).
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 
@@ -88,13 +89,16 @@ class Board:
         """The poster's simulated time now, once it has started (from any thread)."""
         return self.t_request + self._now() - self._c0
 
-    def reached(self, t: float) -> bool:
-        """Whether the poster has finished or its simulated time is past ``t``, read from any
-        thread (the board's lock held); not before it starts. Past, not at: its work between
-        two checks costs no modelled time, so it may yet claim or post at ``t`` itself."""
+    def reached(self, t: float, at: bool = False) -> bool:
+        """Whether the poster has finished or its simulated time is past ``t`` (``at``: at
+        least ``t``), read from any thread (the board's lock held); not before it starts.
+        Past, not at, for a reader that sees what is posted at ``t``: the poster's work
+        between two checks costs no modelled time, so it may yet claim or post at ``t``."""
         if self.end is not None:
             return True
-        return self._now is not None and self._at() > t + 1e-9
+        if self._now is None:
+            return False
+        return self._at() >= t - 1e-9 if at else self._at() > t + 1e-9
 
     def claim(self, group, around) -> None:
         """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
@@ -131,19 +135,31 @@ class Board:
 class BoardReader:
     """A plan's view of ``board``: the plan was requested at simulated time ``t_request`` and
     starts now, on this thread, timed on ``clock`` (as `Board`). ``waited``: simulated time
-    it has spent waiting for the poster, beyond its own clock. ``sync`` (the decision, on the
-    modelled clock): each read first waits until the poster has got as far (`Board.reached`),
-    so it sees all that was posted by then. (The assistant reads the decision's board without:
-    the decision may be waiting for the assistant's.)"""
+    it has spent waiting for the poster, beyond its own clock. ``sync`` (on the modelled
+    clock): each read first waits until the poster has got as far (`Board.reached`), so it
+    sees all that was posted by then.
+
+    ``yields``: at a tie in simulated time the poster goes first. The plan sees only what was
+    posted (claimed, finished) before its time, not at it, so a synced read waits only until
+    the poster has got to its time. Two threads that read each other's boards synced, one
+    yielding, never wait for each other: the one that does not yield waits for the other to
+    be past its time, the one that yields for the other to be at its own. (The decision's
+    assistant reads the decision's board unsynced: the decision's reads do not yield.)"""
 
     def __init__(
-        self, board: Board, t_request: float, clock: str | Callable[[], float] = "wall", sync: bool = False
+        self,
+        board: Board,
+        t_request: float,
+        clock: str | Callable[[], float] = "wall",
+        sync: bool = False,
+        yields: bool = False,
     ):
         self.board = board
         self.t_request = t_request
         self._now = thread_clock(clock)
         self._c0 = self._now()
         self._sync = sync
+        self._yields = yields
         self.waited = 0.0
         self.got: list = []  # every verdict `new` returned, in order
         self._seen = 0
@@ -153,9 +169,13 @@ class BoardReader:
         t = self.t_request + self._now() - self._c0 + self.waited
         if self._sync:
             with self.board._cond:
-                while not self.board.reached(t):
+                while not self.board.reached(t, at=self._yields):
                     self.board._cond.wait(SYNC_POLL_S)
         return t
+
+    def _by(self, stamp: float, t: float) -> bool:
+        """Whether what the poster did at simulated time ``stamp`` is seen at ``t``."""
+        return stamp < t - 1e-9 if self._yields else stamp <= t + 1e-9
 
     def new(self) -> list:
         """The verdicts visible by now that were not returned before, in the poster's order."""
@@ -163,7 +183,7 @@ class BoardReader:
         with self.board._cond:
             entries = self.board._entries
             k = self._seen
-            while k < len(entries) and entries[k][0] <= t + 1e-9:
+            while k < len(entries) and self._by(entries[k][0], t):
                 k += 1
             out = [e for _, e in entries[self._seen : k]]
             self._seen = k
@@ -176,7 +196,7 @@ class BoardReader:
         t = self.t()
         with self.board._cond:
             claim = self._claim_at(t)
-            if claim is None or (claim[1] is not None and claim[1] <= t + 1e-9):
+            if claim is None or (claim[1] is not None and self._by(claim[1], t)):
                 return None
             return claim[2], claim[3]
 
@@ -197,17 +217,54 @@ class BoardReader:
         as far as is known on the wall clock now."""
         t = self.t()
         with self.board._cond:
-            return [(c[2], c[3]) for c in self.board._claims if c[0] <= t + 1e-9]
+            return [(c[2], c[3]) for c in self.board._claims if self._by(c[0], t)]
 
     def stopped(self, final: Callable[[object], bool]) -> bool:
         """Whether the poster had finished, or posted a verdict for which ``final`` is true,
         by this plan's simulated time, as far as is known on the wall clock now."""
         t = self.t()
         with self.board._cond:
-            if self.board.end is not None and self.board.end <= t + 1e-9:
+            if self.board.end is not None and self._by(self.board.end, t):
                 return True
-            return any(final(e) for s, e in self.board._entries if s <= t + 1e-9)
+            return any(final(e) for s, e in self.board._entries if self._by(s, t))
 
     def _claim_at(self, t: float) -> list | None:
         """The poster's last claim begun by simulated time ``t`` (the board's lock held)."""
-        return next((c for c in reversed(self.board._claims) if c[0] <= t + 1e-9), None)
+        return next((c for c in reversed(self.board._claims) if self._by(c[0], t)), None)
+
+
+class Horizon:
+    """How far the Diagram has got in simulated time, for a thread that plans ahead of it on
+    the planner's core, which the next decision needs once its image comes: the lookahead's
+    assistant (`mog_drake.planning.picking.assist` with ``until``). The Diagram's thread calls
+    `reach` at each planner update, with ``image`` at the one that starts that decision, and
+    `close` when the run ends. The assistant asks `came` at its own simulated time, which
+    waits (on the wall clock) until the Diagram has got that far: so its answer, and where the
+    assistant stops, is the same on every run, whichever thread runs ahead."""
+
+    def __init__(self):
+        self._cond = threading.Condition()
+        self._t = -math.inf  # the last update's simulated time
+        self.image: float | None = None  # the simulated time the image came
+        self._closed = False
+
+    def reach(self, t: float, image: bool = False) -> None:
+        """The Diagram is at simulated time ``t``; ``image``: the next image came then."""
+        with self._cond:
+            self._t = max(self._t, t)
+            if image and self.image is None:
+                self.image = t
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        """The run ended: nothing more will come."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    def came(self, t: float) -> bool:
+        """Whether the image came by simulated time ``t``, or the run ended."""
+        with self._cond:
+            while self.image is None and self._t < t - 1e-9 and not self._closed:
+                self._cond.wait()
+            return self._closed or (self.image is not None and self.image <= t + 1e-9)

@@ -98,6 +98,12 @@ class PlannerSpec:
     # done delays the next lookahead, which is then late more often (docs/experiments.md,
     # session 22).
     assist: bool = False
+    # While the arm moves, the planner's own core is idle until the next image: half the
+    # groups the lookahead must simulate are planned there, beside it, on the same terms as
+    # ``assist`` (its board both ways; it stops at the next image, when the decision needs
+    # the core, and the decision starts once its check under way ends). The lookahead is
+    # then late less often.
+    assist_lookahead: bool = False
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.

@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -457,6 +458,7 @@ def assist(
     avoid=(),
     failures=(),
     exclude=(),
+    until: Callable[[float], bool] | None = None,
 ) -> int:
     """Plans, on a second core, half the groups the decision that `next_pick` plans on the same
     image must simulate (an extension; see `PlannerSpec.assist`), and posts each verdict on
@@ -477,7 +479,12 @@ def assist(
     group next (the decision stops there: see next_pick's partial_lifts), and as soon as the
     decision has a grasp or is done, by this plan's simulated time (a check under way ends
     first, then its group is not posted). A next job on this thread starts no earlier than it
-    ends (`Board`'s ``after``, `Worker.submit`'s ``delay``)."""
+    ends (`Board`'s ``after``, `Worker.submit`'s ``delay``).
+
+    The same helps the lookahead (`lookahead`'s ``late``) on the planner's core, idle while
+    the arm moves: ``main`` then reads the lookahead's board, and ``until(t)`` is true once
+    the planner's core is needed by simulated time t (the next image: `board.Horizon.came`);
+    it stops then, as when the lookahead has a grasp or is done."""
     board.start()
     planned = 0
 
@@ -485,7 +492,7 @@ def assist(
         return isinstance(e, FailedGroup) and e.result.found
 
     def stopped() -> bool:
-        return main.stopped(final)
+        return main.stopped(final) or (until is not None and until(board.stamp()))
 
     try:
         if len(scene) == 0:
@@ -585,6 +592,7 @@ def lookahead(
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     board: Board | None = None,
+    late: BoardReader | None = None,
 ) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
@@ -601,12 +609,17 @@ def lookahead(
 
     board: where the next decision, if its image comes first, reads this plan as it goes (see
     `mog_drake.planning.board`): each group as it is simulated, each verdict, and at the end
-    the rest of the memory. It is finished however this returns."""
+    the rest of the memory. It is finished however this returns.
+
+    late: the board of its assistant on the planner's core (`assist` with ``until``), read
+    as a decision reads its assistant's: the verdicts it has posted by then are replayed, and
+    a group it is planning then is waited for. A verdict replayed is posted on ``board``
+    once its group comes up, and the rest at the end."""
     if board is not None:
         board.start()
     try:
         memory = _lookahead(
-            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board
+            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board, late
         )
         if board is not None:
             for entry in memory:
@@ -617,9 +630,15 @@ def lookahead(
             board.finish()
 
 
-def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board):
+def without_grasped(scene, decision: PickDecision) -> Scene:
+    """``scene`` without the objects ``decision``'s grasp takes (its group and what the
+    physics check lifted), as the lookahead plans it."""
     gone = set(decision.group) | set(decision.expected)
-    rest = replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
+    return replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
+
+
+def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board, late):
+    rest = without_grasped(scene, decision)
     if len(rest) == 0:
         return ()
     ahead = next_pick(
@@ -631,6 +650,7 @@ def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, p
         decision.failures,
         grasp_unrecognised,
         pushes_left=pushes_left,
+        late=late,
         post=board,
     )
     memory = list(ahead.failures)

@@ -211,6 +211,7 @@ class ControllerSystem(LeafSystem):
                                 # or its assistant (their board), and the verdicts it took.
                                 "waited": dec.waited,
                                 "assisted": d.assisted,
+                                "helped": d.helped,  # groups its lookahead's assistant planned
                                 "from_board": dec.from_board,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
                             }
@@ -319,6 +320,7 @@ class ControllerSystem(LeafSystem):
                 "lookahead": d.lookahead,
                 "waited": dec.waited,
                 "assisted": d.assisted,
+                "helped": d.helped,
                 "from_board": dec.from_board,
             }
         )

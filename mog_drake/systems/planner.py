@@ -5,16 +5,22 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from mog_drake.planning.board import Board, BoardReader
+from mog_drake.planning.board import Board, BoardReader, Horizon
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, assist, lookahead, next_pick, tally_misses
+from mog_drake.planning.picking import (
+    PickDecision,
+    assist,
+    lookahead,
+    next_pick,
+    tally_misses,
+    without_grasped,
+)
 from mog_drake.planning.planner import draws_at_random
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
@@ -43,6 +49,8 @@ class Decision(_Immutable):
     # in while the plan ran: merge_lookahead), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
     assisted: bool = False  # half its groups were planned on the lookahead's core (assist)
+    # Groups its lookahead's assistant planned on the planner's core (assist_lookahead).
+    helped: int = 0
 
 
 class PlannerSystem(LeafSystem):
@@ -87,13 +95,17 @@ class PlannerSystem(LeafSystem):
         )
         # The decision's assistant on the lookahead's core when that is idle (see
         # mog_drake.planning.picking.assist): deterministic checks, measured latencies.
-        self._assist = (
+        assistable = (
             self._lookahead
-            and self._spec.assist
             and self._latency is None
             and not draws_at_random(self._spec.method)
             and self._spec.decision_budget_s == 0
         )
+        self._assist = assistable and self._spec.assist
+        # The lookahead's assistant on the planner's core while the arm moves, until the next
+        # image (assist_lookahead): the same terms.
+        self._assist_ahead = assistable and self._spec.assist_lookahead
+        self._horizons: list[Horizon] = []  # each assistant's, closed when the run ends
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
@@ -103,6 +115,9 @@ class PlannerSystem(LeafSystem):
         # The last job sent to the lookahead's thread (a lookahead or an assistant), its
         # board in its info: a job sent after it starts no earlier than it ends.
         self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        # The lookahead's assistant, its (board, Horizon) in its info: the next decision
+        # starts on the planner's thread no earlier than it ends.
+        self._helper = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -112,6 +127,8 @@ class PlannerSystem(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
     def shutdown(self) -> None:
+        for h in self._horizons:
+            h.close()  # an assistant waiting for the next image stops
         self._worker.shutdown()
         self._ahead_worker.shutdown()
 
@@ -122,7 +139,7 @@ class PlannerSystem(LeafSystem):
         if job is not None and job.visible(t, self._latency, self._block):
             job_counter = job.counter
             d, rng = job.result()
-            base, n_objects, scene, misses, ahead_use, assisted = job.info
+            base, n_objects, scene, misses, ahead_use, assisted, helped_by = job.info
             if ahead_use == "late":
                 ahead_use = "merged" if d.merged else "dropped"
             recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
@@ -148,6 +165,7 @@ class PlannerSystem(LeafSystem):
                 misses,
                 ahead_use,
                 assisted,
+                helped_by.result() if helped_by is not None else 0,
             )
             state.get_mutable_abstract_state(self._state).set_value(cur)
             state.get_mutable_abstract_state(self._job).set_value(_Slot())
@@ -158,15 +176,19 @@ class PlannerSystem(LeafSystem):
             if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
                 # push-mog: it considers pushes too, with the pushes left after this decision.
                 # It writes on a board as it goes, for the next plan if that starts first.
+                # Its assistant, if any, posts on ``helper``, on the planner's idle core.
                 board = Board(t, self._clock, after=self._thread_board(state))
+                helper = Board(t, self._clock) if self._assist_ahead else None
+                table = d.after if chained else scene
                 ahead = self._ahead_worker.submit(
-                    functools.partial(lookahead, pushes_left=self._spec.max_pushes - cur.pushes, board=board),
-                    d.after if chained else scene,
+                    self._look,
+                    table,
                     d,
-                    self._ahead_planner,
-                    self._spec,
                     copy.deepcopy(rng),
                     cur.recent,
+                    self._spec.max_pushes - cur.pushes,
+                    board,
+                    helper,
                     t_request=t,
                     counter=job_counter,
                     info=board,
@@ -174,10 +196,34 @@ class PlannerSystem(LeafSystem):
                 )
                 state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
                 state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
+                if helper is not None:
+                    horizon = Horizon()
+                    self._horizons.append(horizon)
+                    aid = self._worker.submit(
+                        self._help,
+                        without_grasped(table, d),
+                        d.failures,
+                        cur.recent,
+                        board,
+                        helper,
+                        horizon,
+                        t_request=t,
+                        counter=job_counter,
+                        info=(helper, horizon),
+                    )
+                    state.get_mutable_abstract_state(self._helper).set_value(_Slot(aid))
         p = self._scene.Eval(context)
         last = job.counter if job is not None else cur.counter
-        if job is not None or p.scene is None or p.counter <= last:
+        image = not (job is not None or p.scene is None or p.counter <= last)
+        aid = state.get_mutable_abstract_state(self._helper).get_value().job
+        if aid is not None:
+            # Before anything here may wait for a job: the lookahead's assistant stops at the
+            # image, and the decision starts on the planner's thread once it has.
+            aid.info[1].reach(t, image)
+        if not image:
             return
+        if aid is not None:
+            state.get_mutable_abstract_state(self._helper).set_value(_Slot())
         # A retake replaces a decision that was never executed: plan from the state before it.
         base = cur.previous if p.retake and cur.previous is not None else cur
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
@@ -195,18 +241,21 @@ class PlannerSystem(LeafSystem):
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, ahead_use = ahead.result(), "used"
             elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
-                late, ahead_use = (ahead.info, t), "late"  # the board, the plan's request
+                late, ahead_use = ahead.info, "late"  # its board
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
         avoid, failures = base.recent, memory if self._spec.remember_failures else None
         post = None
+        # This plan starts on the planner's thread once the lookahead's assistant ends.
+        after = aid.info[0] if aid is not None else None
         last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
         if self._assist and late is None and (last is None or last.future.done()):
             # The lookahead's core is idle: half the groups are planned there (its board is
             # this plan's ``late``), and it reads this plan's board (``post``).
-            post, helper = Board(t, self._clock), Board(t, self._clock, after=self._thread_board(state))
-            aid = self._ahead_worker.submit(
+            post = Board(t, self._clock, after=after)
+            helper = Board(t, self._clock, after=self._thread_board(state))
+            helped = self._ahead_worker.submit(
                 self._aid,
                 p.scene,
                 avoid,
@@ -219,8 +268,9 @@ class PlannerSystem(LeafSystem):
                 info=helper,
                 delay=helper.start,
             )
-            state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(aid))
-            late = (helper, t)
+            state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(helped))
+            late = helper
+        start = post if post is not None else Board(t, self._clock, after=after)
         job = self._worker.submit(
             self._plan,
             p.scene,
@@ -232,16 +282,20 @@ class PlannerSystem(LeafSystem):
             given_up,
             late,
             post,
+            start,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene), p.scene, misses, ahead_use, post is not None),
+            info=(base, len(p.scene), p.scene, misses, ahead_use, post is not None, aid),
             waited=lambda out: out[0].waited,
+            delay=start.start,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post):
-        # On the modelled clock the decision's reads are exact (`BoardReader`'s sync).
-        source = None if late is None else BoardReader(*late, self._clock, sync=self._clock == "modelled")
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post, start):
+        # Started already (its delay): its time is its request, or the end of the lookahead's
+        # assistant before it. On the modelled clock its reads are exact (`BoardReader`'s sync).
+        sync = self._clock == "modelled"
+        source = None if late is None else BoardReader(late, start.t_request, self._clock, sync=sync)
         if post is not None:
             post.start()  # its stamps count this thread's time from here
         try:
@@ -262,6 +316,30 @@ class PlannerSystem(LeafSystem):
             if post is not None:
                 post.finish()  # the assistant stops
         return d, rng
+
+    def _look(self, scene, d, rng, avoid, pushes_left, board, helper):
+        # Started already (its delay). It reads its assistant's board as a decision does.
+        board.start()
+        sync = self._clock == "modelled"
+        late = None if helper is None else BoardReader(helper, board.t_request, self._clock, sync=sync)
+        return lookahead(
+            scene,
+            d,
+            self._ahead_planner,
+            self._spec,
+            rng,
+            avoid,
+            pushes_left=pushes_left,
+            board=board,
+            late=late,
+        )
+
+    def _help(self, scene, failures, avoid, main, board, horizon):
+        # The lookahead's assistant, on the planner's thread; it yields to the lookahead at a
+        # tie in simulated time, so their synced reads never wait for each other.
+        board.start()
+        reader = BoardReader(main, board.t_request, self._clock, sync=self._clock == "modelled", yields=True)
+        return assist(scene, self._planner, self._spec, reader, board, avoid, failures, until=horizon.came)
 
     def _aid(self, scene, avoid, failures, exclude, main, board):
         # Started already (its delay): its time is its request, or the end of the job before.
