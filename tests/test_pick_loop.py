@@ -569,7 +569,9 @@ def test_a_reader_that_yields_sees_what_was_posted_before_its_time_and_waits_onl
     board.post("verdict")
     assert BoardReader(board, 1.0, lambda: 0.0, sync=True, yields=True).new() == []
     got = []
-    reader = threading.Thread(target=lambda: got.append(BoardReader(board, 1.0, lambda: 0.0, sync=True).new()))
+    reader = threading.Thread(
+        target=lambda: got.append(BoardReader(board, 1.0, lambda: 0.0, sync=True).new())
+    )
     reader.start()
     reader.join(0.2)
     assert reader.is_alive() and got == []  # waiting for the poster to be past 1.0 s

@@ -893,5 +893,7 @@ def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_t
     main = Board(0.0, clock=lambda: 0.0)
     main.start()
     v = FakeVerifier()
-    n = assist(scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, lambda: 0.0), Board(0.0), until=horizon.came)
+    n = assist(
+        scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, lambda: 0.0), Board(0.0), until=horizon.came
+    )
     assert n == 0 and v.asked == []
