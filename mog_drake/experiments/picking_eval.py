@@ -354,8 +354,9 @@ def wait_by_decision(runs: list[dict]) -> dict:
     """Where the arm waited for compute: the idle time before each attempt or push (from the
     end of the one before, or the run's start), by what the decision it waited for had from
     the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time,
-    and the waits and count of the decisions planned with the assistant ("assisted")."""
-    out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0, "assisted_s": 0.0, "assisted": 0}
+    and the waits and count of the decisions planned with the assistant ("assisted"), and the
+    groups the lookahead's assistant planned ("helped")."""
+    out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0, "assisted_s": 0.0, "assisted": 0, "helped": 0}
     for r in runs:
         events = sorted(
             r.get("attempts", []) + [p for p in r.get("pushes", []) if "end" in p], key=lambda e: e["start"]
@@ -365,6 +366,7 @@ def wait_by_decision(runs: list[dict]) -> dict:
             wait = max(0.0, e["start"] - end)
             kind = "first" if k == 0 else e.get("lookahead", "")
             out[kind if kind in out else ""] += wait
+            out["helped"] += e.get("helped", 0)
             if e.get("assisted"):
                 out["assisted_s"] += wait
                 out["assisted"] += 1
@@ -386,6 +388,8 @@ def wait_text(results: list[dict], modes) -> str:
         line = f"{m}: the arm waited {total:.0f} s ({total * pts:.1f} % of robot time): {parts}"
         if w["assisted"]:
             line += f"; {w['assisted']} decisions planned with the assistant: {w['assisted_s']:.0f} s of it"
+        if w["helped"]:
+            line += f"; {w['helped']} groups planned for the lookahead on the planner's core"
         lines.append(line)
     return "\n".join(lines)
 
