@@ -570,7 +570,7 @@ def test_a_reader_that_yields_sees_what_was_posted_before_its_time_and_waits_onl
     assert BoardReader(board, 1.0, lambda: 0.0, sync=True, yields=True).new() == []
     got = []
     reader = threading.Thread(
-        target=lambda: got.append(BoardReader(board, 1.0, lambda: 0.0, sync=True).new())
+        target=lambda: got.append(BoardReader(board, 1.0, lambda: 0.0, sync=True).new()), daemon=True
     )
     reader.start()
     reader.join(0.2)
@@ -581,3 +581,39 @@ def test_a_reader_that_yields_sees_what_was_posted_before_its_time_and_waits_onl
     # The one that yields sees it once past its time, and never what was posted at it.
     assert BoardReader(board, 1.2, lambda: 0.0, sync=True, yields=True).new() == ["verdict"]
     assert BoardReader(board, 1.0, lambda: 0.0, sync=True, yields=True).new() == []
+
+
+def test_a_poster_waiting_for_anothers_claim_counts_as_being_at_the_others_time():
+    """The lookahead (its board L, at 0.5 s) waits for the verdict of a group its assistant
+    (board A) is simulating. The assistant, at 1.0 s inside that claim, reads L synced: L
+    counts as being at 1.0 s (it will post nothing before the claim ends), so the read
+    returns rather than wait for a poster that waits for it. The claim ends at 3.0 s: L's
+    wait is 2.5 s, and its stamps count it from then on."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader
+
+    a_time = [0.0]
+    helper = Board(0.0, clock=lambda: a_time[0])
+    helper.start()
+    helper.claim((1,), ())
+    ahead = Board(0.5, clock=lambda: 0.0)
+    ahead.start()
+    reader = BoardReader(helper, 0.5, lambda: 0.0, own=ahead)
+    waiter = threading.Thread(target=reader.wait, daemon=True)
+    waiter.start()
+    time.sleep(0.1)
+    a_time[0] = 1.0
+    got = []
+    looker = threading.Thread(
+        target=lambda: got.append(BoardReader(ahead, 1.0, lambda: 0.0, sync=True, yields=True).new()),
+        daemon=True,
+    )
+    looker.start()
+    looker.join(5.0)
+    assert not looker.is_alive() and got == [[]]
+    a_time[0] = 3.0
+    helper.post("verdict")  # the claim ends
+    waiter.join(5.0)
+    assert not waiter.is_alive()
+    assert reader.waited == pytest.approx(2.5) and ahead.stamp() == pytest.approx(3.0)

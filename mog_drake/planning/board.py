@@ -63,6 +63,10 @@ class Board:
         # (from, to or None while open, group, around): what the poster planned when.
         self._claims: list[list] = []
         self._posted: set[int] = set()  # ids of the entries posted
+        # The poster's waits for another board's verdicts (s, its simulated time, as its
+        # latency: `BoardReader`'s ``own``), and the claim it is waiting for now, if any.
+        self._lag = 0.0
+        self._waiting: tuple[Board, list] | None = None
         if clock == "wall":  # a wall-clock latency counts from the request (queueing included)
             self.start()
 
@@ -87,18 +91,37 @@ class Board:
 
     def _at(self) -> float:
         """The poster's simulated time now, once it has started (from any thread)."""
-        return self.t_request + self._now() - self._c0
+        return self.t_request + self._now() - self._c0 + self._lag
 
     def reached(self, t: float, at: bool = False) -> bool:
         """Whether the poster has finished or its simulated time is past ``t`` (``at``: at
         least ``t``), read from any thread (the board's lock held); not before it starts.
         Past, not at, for a reader that sees what is posted at ``t``: the poster's work
-        between two checks costs no modelled time, so it may yet claim or post at ``t``."""
+        between two checks costs no modelled time, so it may yet claim or post at ``t``.
+        A poster waiting for another's claim posts nothing before that claim ends, which is
+        no earlier than the other's time now: it counts as being there."""
         if self.end is not None:
             return True
         if self._now is None:
             return False
-        return self._at() >= t - 1e-9 if at else self._at() > t + 1e-9
+        waiting = self._waiting  # read before the lag: `resume` adds the lag first
+        now = self._at()
+        if waiting is not None:
+            other, claim = waiting
+            bound = other._at()  # read before the claim's end: it ends no earlier
+            end = claim[1]
+            now = max(now, bound if end is None else end)
+        return now >= t - 1e-9 if at else now > t + 1e-9
+
+    def hold(self, other: Board, claim: list) -> None:
+        """On the poster's thread: it waits, from now, for ``other``'s ``claim`` to end."""
+        self._waiting = (other, claim)
+
+    def resume(self, waited: float) -> None:
+        """On the poster's thread: its wait is over, and took ``waited`` s of simulated
+        time, which its stamps count from now on."""
+        self._lag += waited
+        self._waiting = None
 
     def claim(self, group, around) -> None:
         """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
@@ -139,6 +162,11 @@ class BoardReader:
     clock): each read first waits until the poster has got as far (`Board.reached`), so it
     sees all that was posted by then.
 
+    ``own``: the board the plan itself posts on (the lookahead's, or the decision's for its
+    assistant): its waits for this board's verdicts count in its stamps, and while it waits
+    it counts as being at this poster's time (`Board.reached`), so a thread that reads it
+    synced is not held up by a wait for its own claim.
+
     ``yields``: at a tie in simulated time the poster goes first. The plan sees only what was
     posted (claimed, finished) before its time, not at it, so a synced read waits only until
     the poster has got to its time. Two threads that read each other's boards synced, one
@@ -153,8 +181,10 @@ class BoardReader:
         clock: str | Callable[[], float] = "wall",
         sync: bool = False,
         yields: bool = False,
+        own: Board | None = None,
     ):
         self.board = board
+        self._own = own
         self.t_request = t_request
         self._now = thread_clock(clock)
         self._c0 = self._now()
@@ -207,10 +237,15 @@ class BoardReader:
             claim = self._claim_at(self.t())
             if claim is None:
                 return
+            if self._own is not None:
+                self._own.hold(self.board, claim)
             while claim[1] is None:
                 self.board._cond.wait()
             end = claim[1]
-        self.waited += max(0.0, end - self.t())
+        waited = max(0.0, end - self.t())
+        self.waited += waited
+        if self._own is not None:
+            self._own.resume(waited)
 
     def claims(self) -> list[tuple]:
         """(group, around) of every claim the poster had begun by this plan's simulated time,

@@ -295,7 +295,9 @@ class PlannerSystem(LeafSystem):
         # Started already (its delay): its time is its request, or the end of the lookahead's
         # assistant before it. On the modelled clock its reads are exact (`BoardReader`'s sync).
         sync = self._clock == "modelled"
-        source = None if late is None else BoardReader(late, start.t_request, self._clock, sync=sync)
+        source = (
+            None if late is None else BoardReader(late, start.t_request, self._clock, sync=sync, own=post)
+        )
         if post is not None:
             post.start()  # its stamps count this thread's time from here
         try:
@@ -321,7 +323,11 @@ class PlannerSystem(LeafSystem):
         # Started already (its delay). It reads its assistant's board as a decision does.
         board.start()
         sync = self._clock == "modelled"
-        late = None if helper is None else BoardReader(helper, board.t_request, self._clock, sync=sync)
+        late = (
+            None
+            if helper is None
+            else BoardReader(helper, board.t_request, self._clock, sync=sync, own=board)
+        )
         return lookahead(
             scene,
             d,
