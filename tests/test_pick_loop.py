@@ -443,18 +443,35 @@ def test_on_the_modelled_clock_a_decision_sees_each_verdict_posted_by_its_time_h
 class CostlyChecks:
     """A verifier that fails every grasp of a group holding object ``i`` and lifts any other,
     each check charging ``cost`` s to the modelled clock after a wall-clock pause of
-    ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread)."""
+    ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread).
+    As `DrakeVerifier` does under a caller's stop (`mog_drake.planning.clock.interruptible`),
+    it goes in ``steps``: before each but the first, the thread's ``under_way`` is what the
+    check has cost so far and stop() is asked; a stopped check charges only that much and
+    gives no verdict (counted in ``interrupted``)."""
 
-    def __init__(self, i, cost, pauses):
-        self.i, self.cost, self.pauses = i, cost, pauses
+    def __init__(self, i, cost, pauses, steps=8):
+        self.i, self.cost, self.pauses, self.steps = i, cost, pauses, steps
+        self.interrupted = 0
 
     def check(self, scene, group, grasp):
         import threading
 
-        from mog_drake.planning.clock import charge
+        from mog_drake.planning.clock import charge, interrupt, tally
 
-        time.sleep(self.pauses[threading.current_thread().name.split("_")[0]])
-        charge(self.cost)
+        pause = self.pauses[threading.current_thread().name.split("_")[0]] / self.steps
+        stop, spent = interrupt(), self.cost
+        try:
+            for k in range(self.steps):
+                if k and stop is not None:
+                    tally().under_way = self.cost * k / self.steps
+                    if stop():
+                        spent = self.cost * k / self.steps
+                        self.interrupted += 1
+                        return GraspResult(False, interrupted=True, complete=False)
+                time.sleep(pause)
+        finally:
+            tally().under_way = 0.0
+            charge(spent)
         ok = self.i not in group
         return GraspResult(ok, lifted=list(group) if ok else [])
 
@@ -490,7 +507,8 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
         sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
         sc.planner.mode, sc.planner.assist_lookahead = "mog", helper
         pauses = {"planner": 0.0, "lookahead": 0.0, slow: 0.05}
-        d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, pauses))
+        verifier = CostlyChecks(0, 4.0, pauses)
+        d, parts = MakePickDiagram(sc, verifier=verifier)
         sim = Simulator(d)
         ctx = sim.get_mutable_context()
         c = parts["controller"]
