@@ -482,7 +482,8 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     checks are slowed on the wall clock and one whose planner thread's are, give the same
     attempts at the same simulated times, with the same waits; so do two with the lookahead's
     assistant on the planner's thread (assist_lookahead), which plans groups for the
-    lookahead and changes when the grasps come, not which they are."""
+    lookahead and changes when the grasps come, not which they are, and two with the
+    decision's assistant on the lookahead's thread too (assist)."""
     import mog_drake.systems.planner as planner_module
     from mog_drake.planning.board import BoardReader
 
@@ -503,9 +504,11 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     truth = make_scene(objects)
     truth.save(tmp_path / "scene.yaml")
     runs = []
-    for helper, slow in ((False, "lookahead"), (False, "planner"), (True, "lookahead"), (True, "planner")):
+    configs = [(h, False, slow) for h in (False, True) for slow in ("lookahead", "planner")]
+    configs += [(True, True, slow) for slow in ("lookahead", "planner")]  # and the decision's
+    for helper, aid, slow in configs:
         sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
-        sc.planner.mode, sc.planner.assist_lookahead = "mog", helper
+        sc.planner.mode, sc.planner.assist_lookahead, sc.planner.assist = "mog", helper, aid
         pauses = {"planner": 0.0, "lookahead": 0.0, slow: 0.05}
         verifier = CostlyChecks(0, 4.0, pauses)
         d, parts = MakePickDiagram(sc, verifier=verifier)
@@ -517,14 +520,15 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
                 sim.AdvanceTo(ctx.get_time() + 0.05)
         finally:
             _close(parts)
-        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board", "helped")
+        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board", "helped", "assisted")
         runs.append([{k: a.get(k) for k in keys} for a in c.state(c.GetMyContextFromRoot(ctx)).attempts])
     assert len(runs[0]) == 3 and runs[0] == runs[1]
     assert any(a["lookahead"] == "merged" and a["from_board"] > 0 for a in runs[0]), runs[0]
     assert len(runs[2]) == 3 and runs[2] == runs[3]
     assert any(a["helped"] > 0 for a in runs[2]) and not any(a["helped"] for a in runs[0])
+    assert len(runs[4]) == 3 and runs[4] == runs[5] and runs[4][0]["assisted"]
     for k in ("group", "grasp"):
-        assert [a[k] for a in runs[2]] == [a[k] for a in runs[0]]
+        assert [a[k] for a in runs[2]] == [a[k] for a in runs[4]] == [a[k] for a in runs[0]]
     assert synced and all(synced)
 
 
