@@ -443,18 +443,35 @@ def test_on_the_modelled_clock_a_decision_sees_each_verdict_posted_by_its_time_h
 class CostlyChecks:
     """A verifier that fails every grasp of a group holding object ``i`` and lifts any other,
     each check charging ``cost`` s to the modelled clock after a wall-clock pause of
-    ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread)."""
+    ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread).
+    As `DrakeVerifier` does under a caller's stop (`mog_drake.planning.clock.interruptible`),
+    it goes in ``steps``: before each but the first, the thread's ``under_way`` is what the
+    check has cost so far and stop() is asked; a stopped check charges only that much and
+    gives no verdict (counted in ``interrupted``)."""
 
-    def __init__(self, i, cost, pauses):
-        self.i, self.cost, self.pauses = i, cost, pauses
+    def __init__(self, i, cost, pauses, steps=8):
+        self.i, self.cost, self.pauses, self.steps = i, cost, pauses, steps
+        self.interrupted = 0
 
     def check(self, scene, group, grasp):
         import threading
 
-        from mog_drake.planning.clock import charge
+        from mog_drake.planning.clock import charge, interrupt, tally
 
-        time.sleep(self.pauses[threading.current_thread().name.split("_")[0]])
-        charge(self.cost)
+        pause = self.pauses[threading.current_thread().name.split("_")[0]] / self.steps
+        stop, spent = interrupt(), self.cost
+        try:
+            for k in range(self.steps):
+                if k and stop is not None:
+                    tally().under_way = self.cost * k / self.steps
+                    if stop():
+                        spent = self.cost * k / self.steps
+                        self.interrupted += 1
+                        return GraspResult(False, interrupted=True, complete=False)
+                time.sleep(pause)
+        finally:
+            tally().under_way = 0.0
+            charge(spent)
         ok = self.i not in group
         return GraspResult(ok, lifted=list(group) if ok else [])
 
@@ -465,7 +482,8 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     checks are slowed on the wall clock and one whose planner thread's are, give the same
     attempts at the same simulated times, with the same waits; so do two with the lookahead's
     assistant on the planner's thread (assist_lookahead), which plans groups for the
-    lookahead and changes when the grasps come, not which they are."""
+    lookahead and changes when the grasps come, not which they are, and two with the
+    decision's assistant on the lookahead's thread too (assist)."""
     import mog_drake.systems.planner as planner_module
     from mog_drake.planning.board import BoardReader
 
@@ -486,11 +504,14 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
     truth = make_scene(objects)
     truth.save(tmp_path / "scene.yaml")
     runs = []
-    for helper, slow in ((False, "lookahead"), (False, "planner"), (True, "lookahead"), (True, "planner")):
+    configs = [(h, False, slow) for h in (False, True) for slow in ("lookahead", "planner")]
+    configs += [(True, True, slow) for slow in ("lookahead", "planner")]  # and the decision's
+    for helper, aid, slow in configs:
         sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=LatencyConfig("modelled"))
-        sc.planner.mode, sc.planner.assist_lookahead = "mog", helper
+        sc.planner.mode, sc.planner.assist_lookahead, sc.planner.assist = "mog", helper, aid
         pauses = {"planner": 0.0, "lookahead": 0.0, slow: 0.05}
-        d, parts = MakePickDiagram(sc, verifier=CostlyChecks(0, 4.0, pauses))
+        verifier = CostlyChecks(0, 4.0, pauses)
+        d, parts = MakePickDiagram(sc, verifier=verifier)
         sim = Simulator(d)
         ctx = sim.get_mutable_context()
         c = parts["controller"]
@@ -499,14 +520,15 @@ def test_on_the_modelled_clock_two_runs_under_different_load_are_the_same_run(tm
                 sim.AdvanceTo(ctx.get_time() + 0.05)
         finally:
             _close(parts)
-        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board", "helped")
+        keys = ("start", "group", "grasp", "lookahead", "waited", "from_board", "helped", "assisted")
         runs.append([{k: a.get(k) for k in keys} for a in c.state(c.GetMyContextFromRoot(ctx)).attempts])
     assert len(runs[0]) == 3 and runs[0] == runs[1]
     assert any(a["lookahead"] == "merged" and a["from_board"] > 0 for a in runs[0]), runs[0]
     assert len(runs[2]) == 3 and runs[2] == runs[3]
     assert any(a["helped"] > 0 for a in runs[2]) and not any(a["helped"] for a in runs[0])
+    assert len(runs[4]) == 3 and runs[4] == runs[5] and runs[4][0]["assisted"]
     for k in ("group", "grasp"):
-        assert [a[k] for a in runs[2]] == [a[k] for a in runs[0]]
+        assert [a[k] for a in runs[2]] == [a[k] for a in runs[4]] == [a[k] for a in runs[0]]
     assert synced and all(synced)
 
 

@@ -897,3 +897,139 @@ def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_t
         scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, lambda: 0.0), Board(0.0), until=horizon.came
     )
     assert n == 0 and v.asked == []
+
+
+class SteppedChecks(FakeVerifier):
+    """A verifier whose every check fails after ``cost`` s of modelled time, asking its
+    caller's stop as it goes, as `DrakeVerifier` does (`mog_drake.planning.clock.interruptible`):
+    every 0.02 s of that time the thread's ``under_way`` is what it has cost so far and
+    ``stop()`` is asked; a stopped check charges only that much and gives no verdict."""
+
+    def __init__(self, cost: float = 1.0, step: float = 0.02):
+        super().__init__()
+        self.cost, self.step = cost, step
+
+    def check(self, scene, group, grasp):
+        from mog_drake.planning.clock import charge, interrupt, tally
+
+        self.asked.append(np.asarray(grasp).copy())
+        stop, spent = interrupt(), self.cost
+        try:
+            for k in range(1, round(self.cost / self.step)):
+                if stop is not None:
+                    tally().under_way = k * self.step
+                    if stop():
+                        spent = k * self.step
+                        return GraspResult(False, interrupted=True, complete=False)
+        finally:
+            tally().under_way = 0.0
+            charge(spent)
+        return GraspResult(False)
+
+
+def test_the_lookaheads_assistant_stops_mid_check_at_the_next_image():
+    """As above, on the modelled clock, each check 1 s of it, asking its caller's stop every
+    0.02 s: the assistant plans the second group from 0 to 1 s and begins the fourth; the
+    image comes at 1.5 s, mid-check. The assistant stops there, not at the check's end (2 s),
+    so the decision that follows on its thread starts at 1.5 s; the fourth group is not
+    posted and its check not counted. However late on the wall clock the Diagram gets there,
+    the same is decided."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader, Horizon
+    from mog_drake.planning.picking import assist, next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
+    order = [p.group for p in alone.plans]
+    known = {f.group: f for f in alone.failures}
+    for wall_delay in (0.0, 0.2):
+        main = Board(0.0, clock=lambda: 0.0)
+        main.start()
+        main.claim(order[0], known[order[0]].around)
+        horizon = Horizon()
+        horizon.reach(0.0)
+
+        def diagram(horizon=horizon, wall_delay=wall_delay):
+            time.sleep(wall_delay)
+            for t in (0.5, 1.0, 1.25, 1.5, 2.0, 2.5):
+                horizon.reach(t, image=t == 1.5)
+
+        thread = threading.Thread(target=diagram)
+        thread.start()
+        v = SteppedChecks()
+        board = Board(0.0, "modelled")
+        n = assist(
+            scene, GraspPlanner(v, cfg), spec, BoardReader(main, 0.0, "modelled"), board, until=horizon.came
+        )
+        thread.join()
+        assert len(v.asked) == 2 and n == 1, wall_delay
+        assert board.end == pytest.approx(1.5), wall_delay
+        assert [e.group for _, e in board._entries] == [order[1]]
+        decision = Board(1.5, "modelled", after=board)  # requested at the image
+        assert decision.start() == pytest.approx(0.0, abs=1e-9)  # not held up by the assistant
+
+
+class GroupCosts(SteppedChecks):
+    """SteppedChecks whose check of a group costs ``costs[group]`` s and lifts the groups in
+    ``good``."""
+
+    def __init__(self, costs: dict, good=()):
+        super().__init__()
+        self.costs, self.good_groups = costs, set(good)
+
+    def check(self, scene, group, grasp):
+        self.cost = self.costs[tuple(group)]
+        r = super().check(scene, group, grasp)
+        if r.interrupted or tuple(group) not in self.good_groups:
+            return r
+        return GraspResult(True, lifted=list(group))
+
+
+def test_a_lookahead_and_its_assistant_reading_each_other_mid_check_neither_waits_forever():
+    """The lookahead and its assistant on the modelled clock, each reading the other's board
+    synced, as PlannerSystem runs them. Four lone groups g0-g3 (Alg. 1's order): g0 costs 0.5
+    s, g1 1 s, g2 0.5 s and lifts, g3 2 s. The lookahead plans g0 (0-0.5), waits for g1, which
+    its assistant plans (0-1), replays it at 1, and finds g2's grasp at 1.5. The assistant
+    begins g3 at 1: reading it at 1, the lookahead waits for it to be past 1, which it is only
+    mid-check (its time moves as the check goes), while the assistant, asking as it goes
+    whether the lookahead is done, waits for the lookahead to get as far. It stops mid-check
+    once the lookahead's grasp is posted (1.5), not at 3."""
+    import threading
+
+    from mog_drake.planning.board import Board, BoardReader
+    from mog_drake.planning.picking import assist, next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    order = [p.group for p in next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=()).plans]
+    costs = dict(zip(order, (0.5, 1.0, 0.5, 2.0)))
+    main, helper = Board(0.0, "modelled"), Board(0.0, "modelled")
+    out = {}
+
+    def lookahead():
+        main.start()
+        late = BoardReader(helper, 0.0, "modelled", sync=True, own=main)
+        out["d"] = next_pick(
+            scene, GraspPlanner(GroupCosts(costs, [order[2]]), cfg), spec, failures=(), late=late, post=main
+        )
+        main.finish()
+
+    def assistant():
+        reader = BoardReader(main, 0.0, "modelled", sync=True, yields=True)
+        out["n"] = assist(scene, GraspPlanner(GroupCosts(costs), cfg), spec, reader, helper)
+
+    threads = [threading.Thread(target=f, daemon=True) for f in (lookahead, assistant)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(timeout=30)
+    assert not any(th.is_alive() for th in threads), "the two threads wait for each other"
+    d = out["d"]
+    assert d.status == "grasp" and tuple(d.group) == order[2] and d.physics_checks == 2
+    assert d.from_board == 1 and main.end == pytest.approx(1.5)
+    assert out["n"] == 1 and [e.group for _, e in helper._entries] == [order[1]]
+    assert 1.5 < helper.end <= 1.5 + 0.03  # stopped mid-check, one ask past the grasp

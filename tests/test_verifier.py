@@ -117,6 +117,39 @@ def test_each_simulation_charges_its_modelled_cost_to_the_thread_that_ran_it():
     assert modelled_time() == t1
 
 
+def test_a_check_asks_its_callers_stop_as_it_goes_and_ends_at_once_with_no_verdict():
+    """clock.interruptible: the check asks stop() every INTERRUPT_PERIOD of simulated time,
+    on the modelled clock with the thread's time moved on by what it has cost so far; once
+    stop() is true it ends with no verdict (interrupted, nothing lifted) and charges only what
+    it simulated. Without a caller's stop the same check runs to its verdict."""
+    from mog_drake.planning.clock import INTERRUPT_PERIOD, WorkCost, interruptible, modelled_time
+
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    cost = WorkCost(check_s=0.5, sim_s=2.0, body_sim_s=3.0)
+    verifier = DrakeVerifier(cost=cost)
+    whole = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert whole.success and not whole.interrupted and whole.sim_time > 1.0
+    seen = []  # the thread's modelled time at each ask
+
+    def stop():
+        seen.append(modelled_time())
+        return seen[-1] - t0 >= 1.6  # 0.5 + 5 s per simulated s: 0.22 s simulated
+
+    t0 = modelled_time()
+    with interruptible(stop):
+        r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert r.interrupted and not r.success and not r.complete and r.lifted == []
+    assert r.sim_time == pytest.approx(0.22, abs=INTERRUPT_PERIOD + 0.01)
+    assert modelled_time() - t0 == pytest.approx(0.5 + r.sim_time * 5.0)  # charged once
+    steps = np.diff(seen)  # the clock moved as the check went, INTERRUPT_PERIOD at a time
+    assert len(seen) >= 10 and np.all(steps > 0) and np.all(steps < 5.0 * INTERRUPT_PERIOD + 0.02)
+    t1 = modelled_time()
+    with interruptible(lambda: False):
+        again = verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    assert again.success and again.sim_time == whole.sim_time and not again.interrupted
+    assert modelled_time() - t1 == pytest.approx(0.5 + whole.sim_time * 5.0)
+
+
 def test_only_reachable_objects_are_simulated():
     scene = make_scene(
         [

@@ -16,6 +16,7 @@ same board reads and so the same decisions, whatever else the machine is doing; 
 planners can be compared table by table without the noise of the machine.
 """
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable
@@ -41,10 +42,13 @@ class WorkCost:
 
 
 class Tally:
-    """One thread's modelled time (s): the cost of the work it has done."""
+    """One thread's modelled time (s): the cost of the work it has done (``t``), plus what
+    the simulation under way has cost so far, while one that may be interrupted runs
+    (``under_way``: see `interruptible`)."""
 
     def __init__(self):
         self.t = 0.0
+        self.under_way = 0.0
 
 
 _local = threading.local()
@@ -65,7 +69,36 @@ def charge(seconds: float) -> None:
 
 def modelled_time() -> float:
     """The calling thread's modelled time (s)."""
-    return tally().t
+    t = tally()
+    return t.t + t.under_way
+
+
+@contextlib.contextmanager
+def interruptible(stop: Callable[[], bool]):
+    """Within the block, a physics simulation on this thread asks ``stop()`` as it goes (every
+    `INTERRUPT_PERIOD` of simulated time) and ends at once, with no verdict, once it is true:
+    a plan its caller no longer needs stops mid-check instead of running the check to its end
+    (the assistants: `mog_drake.planning.picking.assist`). On the modelled clock the thread's
+    time moves as the simulation goes while it may be interrupted (`Tally.under_way`, set by
+    the simulation before each ask), so ``stop()`` answers at the time the simulation has got
+    to, and a thread that waits for this one to get past a time sees it do so mid-check."""
+    old = getattr(_local, "stop", None)
+    _local.stop = stop
+    try:
+        yield
+    finally:
+        _local.stop = old
+
+
+def interrupt() -> Callable[[], bool] | None:
+    """The calling thread's ``stop`` (`interruptible`), or None."""
+    return getattr(_local, "stop", None)
+
+
+# Simulated seconds between two asks of an interruptible simulation (`interruptible`): each
+# ask may read another thread's board, and on the modelled clock at most this much
+# simulation, about 0.02-0.05 s of modelled time, runs past the moment its caller stopped.
+INTERRUPT_PERIOD = 0.02
 
 
 def caller_clock(clock: str) -> Callable[[], float]:
@@ -85,5 +118,5 @@ def thread_clock(clock: str | Callable[[], float]) -> Callable[[], float]:
         return lambda: time.clock_gettime(clock_id)
     if clock == "modelled":
         t = tally()
-        return lambda: t.t
+        return lambda: t.t + t.under_way
     return time.perf_counter

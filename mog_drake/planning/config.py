@@ -93,16 +93,15 @@ class PlannerSpec:
     # the ranked planners, whose checks are deterministic, and no decision_budget_s): the
     # decision replays their verdicts, and Alg. 1's choice is unchanged (see
     # mog_drake.planning.picking.assist). Off by default: on mog tables 0-3 (v12) the arm
-    # waited longer. Most decisions need one or two groups simulated, so the assistant
-    # rarely contributes a verdict, while the check it has under way when the decision is
-    # done delays the next lookahead, which is then late more often (docs/experiments.md,
-    # session 22).
+    # waited longer, as the check it had under way when the decision was done delayed the
+    # next lookahead; such a check is now stopped mid-simulation (clock.interruptible), and
+    # the assistant is being measured again (docs/experiments.md, sessions 22 and 24).
     assist: bool = False
     # While the arm moves, the planner's own core is idle until the next image: half the
     # groups the lookahead must simulate are planned there, beside it, on the same terms as
-    # ``assist`` (its board both ways; it stops at the next image, when the decision needs
-    # the core, and the decision starts once its check under way ends). The lookahead is
-    # then late less often.
+    # ``assist`` (its board both ways; it stops at the next image, mid-check, when the
+    # decision needs the core). The lookahead is then late less often. Off by default while
+    # it is measured (docs/experiments.md, session 24).
     assist_lookahead: bool = False
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)

@@ -29,6 +29,7 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
+from mog_drake.planning.clock import interruptible
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
@@ -198,7 +199,9 @@ class GraspPlanner:
         candidates are simulated once a verified grasp is in hand: this plan's partial lift,
         or (``fallback``) the caller's. ``stop()``: true
         once no more candidates are to be simulated (the plan is cut short: its caller no
-        longer needs it)."""
+        longer needs it); it is asked before each candidate and, as the physics check goes,
+        during it (`mog_drake.planning.clock.interruptible`): a check it stops gives no
+        verdict and is not counted as tested."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -268,7 +271,15 @@ class GraspPlanner:
             if stop is not None and stop():
                 cut = True
                 break
-            last = self.verifier.check(scene, group, cands[i])
+            if stop is None:
+                res = self.verifier.check(scene, group, cands[i])
+            else:
+                with interruptible(stop):
+                    res = self.verifier.check(scene, group, cands[i])
+                if res.interrupted:  # no verdict: as if it had stopped before this candidate
+                    cut = True
+                    break
+            last = res
             tested.append(int(i))
             held = last.complete and not last.error and last.lifted
             if held and (best_lift is None or len(last.lifted) > len(best_lift[1])):

@@ -21,7 +21,7 @@ from mog_drake.geometry import GripperGeometry, objects_at_grasp, objects_in_rea
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import ease as _smooth
 from mog_drake.geometry.push import near_path, push_duration
-from mog_drake.planning.clock import WorkCost, charge
+from mog_drake.planning.clock import INTERRUPT_PERIOD, WorkCost, charge, interrupt, tally
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -376,7 +376,10 @@ class DrakeVerifier:
                 complete=False,
             )
         sim, built = self._sim_for(scene, group, grasp)
-        result = self._run(sim, group, grasp, t0)
+        try:
+            result = self._run(sim, group, grasp, t0)
+        finally:
+            tally().under_way = 0.0  # before the charge: the thread's time never runs ahead
         result.built, result.bodies = built, len(sim.bodies)
         self._charge(result.sim_time, len(sim.bodies))
         return result
@@ -410,6 +413,11 @@ class DrakeVerifier:
         settle = {"samples": [], "next": timeline["lift1"]}
         watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
         lifted_z = cfg.lifted_height
+        # The caller's stop (`mog_drake.planning.clock.interruptible`), asked every
+        # INTERRUPT_PERIOD of simulated time; on the modelled clock, with the thread's time
+        # moved on by what this simulation has cost so far.
+        stop, asked = interrupt(), {"next": INTERRUPT_PERIOD}
+        n_bodies = len(sim.bodies)
 
         def settled(ctx, t) -> bool:
             """Whether, over the last settle_window of the hold, the fastest lifted object's
@@ -454,6 +462,13 @@ class DrakeVerifier:
                     return EventStatus.ReachedTermination(None, status["early"])
             if cfg.settle_window > 0 and settled(ctx, t):
                 return EventStatus.ReachedTermination(None, "every object settled in the hold")
+            if stop is not None and t >= asked["next"] - 1e-9:
+                asked["next"] = t + INTERRUPT_PERIOD
+                if self.cost is not None:
+                    tally().under_way = self.cost.of(t, n_bodies)
+                if stop():
+                    status["interrupted"] = f"interrupted at t = {t:.3f} s: its caller stopped"
+                    return EventStatus.ReachedTermination(None, status["interrupted"])
             return EventStatus.Succeeded()
 
         sim.simulator.set_monitor(monitor)
@@ -479,6 +494,15 @@ class DrakeVerifier:
             if sim.meshcat is not None:
                 sim.meshcat.StopRecording()
                 sim.meshcat.PublishRecording()
+        if status.get("interrupted"):
+            return GraspResult(
+                False,
+                sim_time=sim.context.get_time(),
+                wall_time=time.perf_counter() - t0,
+                error=status["interrupted"],
+                complete=False,
+                interrupted=True,
+            )
         return self._verdict(sim, group, t0, status["early"])
 
     def _verdict(self, sim: _GroupSim, group, t0: float, early: str = "") -> GraspResult:

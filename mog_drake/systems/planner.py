@@ -250,7 +250,12 @@ class PlannerSystem(LeafSystem):
         # This plan starts on the planner's thread once the lookahead's assistant ends.
         after = aid.info[0] if aid is not None else None
         last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
-        if self._assist and late is None and (last is None or last.future.done()):
+        # On the modelled clock the lookahead's core is idle in simulated time whenever there
+        # is no late lookahead (a lookahead in time is done; another job there ended with its
+        # decision), and a job still finishing there on the wall clock only delays the
+        # assistant's start (its ``after``): whether to assist is decided the same on every run.
+        idle = last is None or last.future.done() or self._clock == "modelled"
+        if self._assist and late is None and idle:
             # The lookahead's core is idle: half the groups are planned there (its board is
             # this plan's ``late``), and it reads this plan's board (``post``).
             post = Board(t, self._clock, after=after)
@@ -349,7 +354,10 @@ class PlannerSystem(LeafSystem):
 
     def _aid(self, scene, avoid, failures, exclude, main, board):
         # Started already (its delay): its time is its request, or the end of the job before.
-        main = BoardReader(main, board.t_request, self._clock)
+        # On the modelled clock its reads of the decision's board are exact too, yielding at a
+        # tie (as the lookahead's assistant's): the same on every run, and the two never wait
+        # for each other (the decision's own waits for this board count as its time: ``own``).
+        main = BoardReader(main, board.t_request, self._clock, sync=self._clock == "modelled", yields=True)
         return assist(scene, self._ahead_planner, self._spec, main, board, avoid, failures, exclude)
 
     def _thread_board(self, state) -> Board | None:
