@@ -746,6 +746,19 @@ def _four_apart():
     )
 
 
+def _four_apart_alone():
+    """`_four_apart`, one physics check per group, no grasp for any: the scene, the spec and
+    planner config, Alg. 1's order of its groups, and each group's failure as next_pick
+    remembers it, when one thread plans them alone."""
+    from mog_drake.planning.picking import next_pick
+
+    scene = _four_apart()
+    spec = PlannerSpec(last_resort=False)
+    cfg = PlannerConfig("gp", max_physics=1)
+    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
+    return scene, spec, cfg, [p.group for p in alone.plans], {f.group: f for f in alone.failures}
+
+
 def test_the_assistant_plans_every_other_group_the_decision_must_simulate():
     """Four lone objects, no grasp for any, one physics check per group (1 s of the
     assistant's clock each). The decision (its board scripted here) begins the first group at
@@ -811,14 +824,9 @@ def test_the_lookahead_replays_its_assistants_verdicts_and_posts_them_on_its_own
     replays the other two, and posts all four on its own board (the next decision reads
     only that one)."""
     from mog_drake.planning.board import Board, BoardReader
-    from mog_drake.planning.picking import PickDecision, lookahead, next_pick
+    from mog_drake.planning.picking import PickDecision, lookahead
 
-    scene = _four_apart()
-    spec = PlannerSpec(last_resort=False)
-    cfg = PlannerConfig("gp", max_physics=1)
-    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
-    order = [p.group for p in alone.plans]
-    known = {f.group: f for f in alone.failures}
+    scene, spec, cfg, order, known = _four_apart_alone()
     helper_time = [0.0]
     helper = Board(0.0, clock=lambda: helper_time[0])
     helper.start()
@@ -855,14 +863,9 @@ def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_t
     import threading
 
     from mog_drake.planning.board import Board, BoardReader, Horizon
-    from mog_drake.planning.picking import assist, next_pick
+    from mog_drake.planning.picking import assist
 
-    scene = _four_apart()
-    spec = PlannerSpec(last_resort=False)
-    cfg = PlannerConfig("gp", max_physics=1)
-    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
-    order = [p.group for p in alone.plans]
-    known = {f.group: f for f in alone.failures}
+    scene, spec, cfg, order, known = _four_apart_alone()
     for image, planned in ((1.0, 1), (1.01, 2)):
         for wall_delay in (0.0, 0.2):
             main = Board(0.0, clock=lambda: 0.0)
@@ -937,14 +940,9 @@ def test_the_lookaheads_assistant_stops_mid_check_at_the_next_image():
     import threading
 
     from mog_drake.planning.board import Board, BoardReader, Horizon
-    from mog_drake.planning.picking import assist, next_pick
+    from mog_drake.planning.picking import assist
 
-    scene = _four_apart()
-    spec = PlannerSpec(last_resort=False)
-    cfg = PlannerConfig("gp", max_physics=1)
-    alone = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=())
-    order = [p.group for p in alone.plans]
-    known = {f.group: f for f in alone.failures}
+    scene, spec, cfg, order, known = _four_apart_alone()
     for wall_delay in (0.0, 0.2):
         main = Board(0.0, clock=lambda: 0.0)
         main.start()
