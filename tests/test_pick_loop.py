@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import make_scene
+from conftest import check_in_steps, make_scene
 from pydrake.systems.analysis import Simulator
 
 from mog_drake.planning.protocol import GraspResult
@@ -445,9 +445,8 @@ class CostlyChecks:
     each check charging ``cost`` s to the modelled clock after a wall-clock pause of
     ``pauses[thread]`` s ("planner" or "lookahead": a machine whose load slows one thread).
     As `DrakeVerifier` does under a caller's stop (`mog_drake.planning.clock.interruptible`),
-    it goes in ``steps``: before each but the first, the thread's ``under_way`` is what the
-    check has cost so far and stop() is asked; a stopped check charges only that much and
-    gives no verdict (counted in ``interrupted``)."""
+    it goes in ``steps`` (`conftest.check_in_steps`); a stopped check gives no verdict
+    (counted in ``interrupted``)."""
 
     def __init__(self, i, cost, pauses, steps=8):
         self.i, self.cost, self.pauses, self.steps = i, cost, pauses, steps
@@ -456,22 +455,10 @@ class CostlyChecks:
     def check(self, scene, group, grasp):
         import threading
 
-        from mog_drake.planning.clock import charge, interrupt, tally
-
         pause = self.pauses[threading.current_thread().name.split("_")[0]] / self.steps
-        stop, spent = interrupt(), self.cost
-        try:
-            for k in range(self.steps):
-                if k and stop is not None:
-                    tally().under_way = self.cost * k / self.steps
-                    if stop():
-                        spent = self.cost * k / self.steps
-                        self.interrupted += 1
-                        return GraspResult(False, interrupted=True, complete=False)
-                time.sleep(pause)
-        finally:
-            tally().under_way = 0.0
-            charge(spent)
+        if check_in_steps(self.cost, self.steps, pause):
+            self.interrupted += 1
+            return GraspResult(False, interrupted=True, complete=False)
         ok = self.i not in group
         return GraspResult(ok, lifted=list(group) if ok else [])
 

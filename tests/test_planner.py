@@ -3,7 +3,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import make_scene
+from conftest import check_in_steps, make_scene
 
 from mog_drake.errors import MogError
 from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
@@ -759,6 +759,19 @@ def _four_apart_alone():
     return scene, spec, cfg, [p.group for p in alone.plans], {f.group: f for f in alone.failures}
 
 
+def _lookahead_on_its_first_group(order, known):
+    """A lookahead's board (its clock stopped at 0) that has claimed Alg. 1's first group of
+    `_four_apart_alone`, and the Diagram's Horizon at 0, for its assistant."""
+    from mog_drake.planning.board import Board, Horizon
+
+    main = Board(0.0, clock=lambda: 0.0)
+    main.start()
+    main.claim(order[0], known[order[0]].around)
+    horizon = Horizon()
+    horizon.reach(0.0)
+    return main, horizon
+
+
 def test_the_assistant_plans_every_other_group_the_decision_must_simulate():
     """Four lone objects, no grasp for any, one physics check per group (1 s of the
     assistant's clock each). The decision (its board scripted here) begins the first group at
@@ -868,11 +881,7 @@ def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_t
     scene, spec, cfg, order, known = _four_apart_alone()
     for image, planned in ((1.0, 1), (1.01, 2)):
         for wall_delay in (0.0, 0.2):
-            main = Board(0.0, clock=lambda: 0.0)
-            main.start()
-            main.claim(order[0], known[order[0]].around)
-            horizon = Horizon()
-            horizon.reach(0.0)
+            main, horizon = _lookahead_on_its_first_group(order, known)
 
             def diagram(horizon=horizon, image=image, wall_delay=wall_delay):
                 time.sleep(wall_delay)
@@ -904,29 +913,17 @@ def test_the_lookaheads_assistant_stops_at_the_next_image_by_its_own_simulated_t
 
 class SteppedChecks(FakeVerifier):
     """A verifier whose every check fails after ``cost`` s of modelled time, asking its
-    caller's stop as it goes, as `DrakeVerifier` does (`mog_drake.planning.clock.interruptible`):
-    every 0.02 s of that time the thread's ``under_way`` is what it has cost so far and
-    ``stop()`` is asked; a stopped check charges only that much and gives no verdict."""
+    caller's stop every ``step`` s of that time, as `DrakeVerifier` does
+    (`conftest.check_in_steps`); a stopped check gives no verdict."""
 
     def __init__(self, cost: float = 1.0, step: float = 0.02):
         super().__init__()
         self.cost, self.step = cost, step
 
     def check(self, scene, group, grasp):
-        from mog_drake.planning.clock import charge, interrupt, tally
-
         self.asked.append(np.asarray(grasp).copy())
-        stop, spent = interrupt(), self.cost
-        try:
-            for k in range(1, round(self.cost / self.step)):
-                if stop is not None:
-                    tally().under_way = k * self.step
-                    if stop():
-                        spent = k * self.step
-                        return GraspResult(False, interrupted=True, complete=False)
-        finally:
-            tally().under_way = 0.0
-            charge(spent)
+        if check_in_steps(self.cost, round(self.cost / self.step)):
+            return GraspResult(False, interrupted=True, complete=False)
         return GraspResult(False)
 
 
@@ -939,16 +936,12 @@ def test_the_lookaheads_assistant_stops_mid_check_at_the_next_image():
     the same is decided."""
     import threading
 
-    from mog_drake.planning.board import Board, BoardReader, Horizon
+    from mog_drake.planning.board import Board, BoardReader
     from mog_drake.planning.picking import assist
 
     scene, spec, cfg, order, known = _four_apart_alone()
     for wall_delay in (0.0, 0.2):
-        main = Board(0.0, clock=lambda: 0.0)
-        main.start()
-        main.claim(order[0], known[order[0]].around)
-        horizon = Horizon()
-        horizon.reach(0.0)
+        main, horizon = _lookahead_on_its_first_group(order, known)
 
         def diagram(horizon=horizon, wall_delay=wall_delay):
             time.sleep(wall_delay)

@@ -50,6 +50,11 @@ class Tally:
         self.t = 0.0
         self.under_way = 0.0
 
+    def now(self) -> float:
+        """The thread's modelled time (s), read from any thread: ``t`` first, so a read
+        between clearing ``under_way`` and charging the whole cost is early, never late."""
+        return self.t + self.under_way
+
 
 _local = threading.local()
 
@@ -69,19 +74,19 @@ def charge(seconds: float) -> None:
 
 def modelled_time() -> float:
     """The calling thread's modelled time (s)."""
-    t = tally()
-    return t.t + t.under_way
+    return tally().now()
 
 
 @contextlib.contextmanager
-def interruptible(stop: Callable[[], bool]):
+def interruptible(stop: Callable[[], bool] | None):
     """Within the block, a physics simulation on this thread asks ``stop()`` as it goes (every
     `INTERRUPT_PERIOD` of simulated time) and ends at once, with no verdict, once it is true:
     a plan its caller no longer needs stops mid-check instead of running the check to its end
     (the assistants: `mog_drake.planning.picking.assist`). On the modelled clock the thread's
     time moves as the simulation goes while it may be interrupted (`Tally.under_way`, set by
     the simulation before each ask), so ``stop()`` answers at the time the simulation has got
-    to, and a thread that waits for this one to get past a time sees it do so mid-check."""
+    to, and a thread that waits for this one to get past a time sees it do so mid-check.
+    ``stop`` None: nothing interrupts a simulation in the block."""
     old = getattr(_local, "stop", None)
     _local.stop = stop
     try:
@@ -117,6 +122,5 @@ def thread_clock(clock: str | Callable[[], float]) -> Callable[[], float]:
         clock_id = time.pthread_getcpuclockid(threading.get_ident())
         return lambda: time.clock_gettime(clock_id)
     if clock == "modelled":
-        t = tally()
-        return lambda: t.t + t.under_way
+        return tally().now
     return time.perf_counter

@@ -271,14 +271,11 @@ class GraspPlanner:
             if stop is not None and stop():
                 cut = True
                 break
-            if stop is None:
+            with interruptible(stop):
                 res = self.verifier.check(scene, group, cands[i])
-            else:
-                with interruptible(stop):
-                    res = self.verifier.check(scene, group, cands[i])
-                if res.interrupted:  # no verdict: as if it had stopped before this candidate
-                    cut = True
-                    break
+            if res.interrupted:  # no verdict: as if it had stopped before this candidate
+                cut = True
+                break
             last = res
             tested.append(int(i))
             held = last.complete and not last.error and last.lifted

@@ -406,7 +406,7 @@ class DrakeVerifier:
         timeline = cfg.timeline(g)
         t_end = timeline["end"]
         cpu_deadline = time.thread_time() + cfg.cpu_budget
-        status = {"error": "", "early": ""}
+        status = {"error": "", "early": "", "interrupted": ""}
         group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
         z_joint = j[2]
         finger_h = cfg.physics.finger_height
@@ -494,7 +494,7 @@ class DrakeVerifier:
             if sim.meshcat is not None:
                 sim.meshcat.StopRecording()
                 sim.meshcat.PublishRecording()
-        if status.get("interrupted"):
+        if status["interrupted"]:
             return GraspResult(
                 False,
                 sim_time=sim.context.get_time(),
