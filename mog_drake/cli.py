@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mog_drake.errors import MogError
+from mog_drake.errors import MogError, Terminated, stop_on_signals
 from mog_drake.experiments.bench import BENCHES
 from mog_drake.planning.config import MODES
 from mog_drake.tables import format_table
@@ -785,9 +785,10 @@ def check_args(args) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        args = build_parser().parse_args(argv)
-        check_args(args)
-        return int(args.func(args) or 0)
+        with stop_on_signals():
+            args = build_parser().parse_args(argv)
+            check_args(args)
+            return int(args.func(args) or 0)
     except _UsageError as e:
         print(f"mog-drake: error: {e}", file=sys.stderr)
         return 2
@@ -801,6 +802,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("mog-drake: interrupted", file=sys.stderr)
         return 130
+    except Terminated as e:
+        print(f"mog-drake: terminated by {e}", file=sys.stderr)
+        return e.exit_code
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 
 class MogError(Exception):
     """A user-caused error (bad file, unknown shape, invalid pose, unreachable grasp, ...).
@@ -20,3 +22,51 @@ class HardwareFault(MogError):
     """
 
     exit_code = 3
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived (`kill`, systemd, a container runtime, a closed terminal).
+
+    Raised in the main thread by `stop_on_signals`, like KeyboardInterrupt for SIGINT, so that
+    every ``finally`` on the way out runs: the hardware station stops the arm and closes its
+    connections, a sweep keeps what it wrote. The CLI exits 128 + the signal's number."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """Within the block, SIGTERM and SIGHUP raise `Terminated` in the main thread (on any
+    other thread, or where signals cannot be set, it does nothing). The handlers it replaced
+    come back when the block ends; blocks nest."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    arrived = []
+
+    def handler(signum, frame):
+        if arrived:  # a second signal must not cut short the cleanup the first one started
+            return
+        arrived.append(signum)
+        raise Terminated(signum)
+
+    saved = {}
+    try:
+        for s in (signal.SIGTERM, signal.SIGHUP):
+            saved[s] = signal.signal(s, handler)
+        yield
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)

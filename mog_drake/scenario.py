@@ -436,6 +436,13 @@ def check_scenario(sc: Scenario) -> None:
     _box(hw.workspace, "hardware.workspace", 6)
     if hw.link_box:
         _box(hw.link_box, "hardware.link_box", 6)
+    if hw.enabled and sc.robot.max_joint_speed > hw.max_joint_speed:
+        # The driver refuses any target faster than its limit: such a run would fault at its
+        # first motion, with the arm already under way.
+        raise MogError(
+            f"robot.max_joint_speed {sc.robot.max_joint_speed:g} rad/s plans faster than "
+            f"hardware.max_joint_speed {hw.max_joint_speed:g} rad/s allows: lower the first"
+        )
 
 
 HEADER = """\

@@ -14,6 +14,28 @@ def make_scene(objs, group=None, **kw) -> Scene:
     return Scene([SceneObject(*o) for o in objs], default_library(), group=group, **kw)
 
 
+@pytest.fixture(scope="session")
+def replay_dir(tmp_path_factory):
+    """One RGB-D frame of a 3-object table, rendered by the simulated station."""
+    from mog_drake.hardware.drivers import record_frame
+    from mog_drake.scenario import ClutteredScene, Scenario
+    from mog_drake.station import MakeStation, rendered_intrinsics
+
+    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3))
+    d, _ = MakeStation(sc)
+    ctx = d.CreateDefaultContext()
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
+    folder = tmp_path_factory.mktemp("frames")
+    record_frame(
+        folder,
+        d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
+        d.GetOutputPort("camera.depth_image").Eval(ctx).data,
+        rendered_intrinsics(sc.camera),
+    )
+    return folder
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)

@@ -216,7 +216,7 @@ def test_an_unwritable_output_and_a_broken_replay_frame_get_one_line(tmp_path, c
     hw = _write(
         tmp_path,
         "hw.yaml",
-        f"hardware: {{enabled: true, dry_run: true, camera: !ReplaySource {{dir: '{frames}'}}}}\n",
+        f"hardware: {{enabled: true, dry_run: true, max_joint_speed: 3.5, camera: !ReplaySource {{dir: '{frames}'}}}}\n",
     )
     one_line_error(
         *run(capsys, "pick", "--scenario", hw, "--robot-ip", "192.0.2.1")[::2], "not a readable frame"

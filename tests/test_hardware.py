@@ -3,6 +3,8 @@ no robot needed. Tests assert on what the fake robot received (with wall-clock s
 on how fast the test itself ran."""
 
 import json
+import os
+import signal
 import time
 
 import numpy as np
@@ -25,10 +27,9 @@ from mog_drake.hardware.drivers import (
     SafetyLimits,
     SafetyMonitor,
     UR5Driver,
-    record_frame,
 )
 from mog_drake.hardware.robotiq import RobotiqClient
-from mog_drake.scenario import ClutteredScene, HardwareSpec, ReplaySource, Scenario
+from mog_drake.scenario import HardwareSpec, ReplaySource, Scenario
 from mog_drake.station import PORTS_IN, PORTS_OUT, MakeStation, rendered_intrinsics
 
 LIMITS = SafetyLimits()
@@ -305,27 +306,9 @@ def test_gripper_driver_latches_gripper_faults(mode, expected):
 
 
 def test_station_refuses_to_start_without_a_robot_address():
-    sc = Scenario(hardware=HardwareSpec(enabled=True, camera=ReplaySource(dir=".")))
+    sc = Scenario(hardware=HardwareSpec(enabled=True, camera=ReplaySource(dir="."), max_joint_speed=3.5))
     with pytest.raises(MogError, match="explicit robot address"):
         MakeStation(sc)
-
-
-@pytest.fixture(scope="module")
-def replay_dir(tmp_path_factory):
-    """One RGB-D frame of a 3-object table, rendered by the simulated station."""
-    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3))
-    d, _ = MakeStation(sc)
-    ctx = d.CreateDefaultContext()
-    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
-    d.GetInputPort("gripper.position").FixValue(ctx, [0.075])
-    folder = tmp_path_factory.mktemp("frames")
-    record_frame(
-        folder,
-        d.GetOutputPort("camera.rgb_image").Eval(ctx).data,
-        d.GetOutputPort("camera.depth_image").Eval(ctx).data,
-        rendered_intrinsics(sc.camera),
-    )
-    return folder
 
 
 def test_replayed_frames_bring_their_own_intrinsics(replay_dir, tmp_path):
@@ -396,6 +379,8 @@ def test_realsense_camera_reads_intrinsics_and_depth_scale_from_the_device(monke
 
 
 def _hw(replay_dir, **kw):
+    """A hardware station on recorded frames; its driver allows the default planned speed."""
+    kw.setdefault("max_joint_speed", 3.5)
     return HardwareSpec(enabled=True, robot_ip="192.0.2.1", camera=ReplaySource(dir=str(replay_dir)), **kw)
 
 
@@ -442,7 +427,7 @@ def test_full_pick_real_time_with_a_planner_slowed_by_2_s(replay_dir, monkeypatc
     monkeypatch.setattr(ls, "next_pick", slow_next_pick)
     # The first decision comes after 2 s of sleep plus perception and planning in real time:
     # 6 s leave room for a loaded machine (4 s did not, beside two simulations).
-    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=6.0)
+    sc = Scenario(hardware=_hw(replay_dir), time_limit=6.0)
     ur, control, receive = fake_ur5(sc.robot.home)
     with FakeRobotiq() as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client:
         run = run_pick(
@@ -481,7 +466,7 @@ def test_full_pick_real_time_with_a_planner_slowed_by_2_s(replay_dir, monkeypatc
 def test_ctrl_c_stops_the_arm_and_closes_the_connections(replay_dir):
     from mog_drake.systems.pick import run_pick
 
-    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=4.0)
+    sc = Scenario(hardware=_hw(replay_dir), time_limit=4.0)
     ur, control, receive = fake_ur5(sc.robot.home)
     polls = [0]
     real = receive.getActualQ
@@ -502,12 +487,52 @@ def test_ctrl_c_stops_the_arm_and_closes_the_connections(replay_dir):
     assert ("servoStop",) in ur.calls and ("disconnect_control",) in ur.calls
 
 
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_stop_the_arm_and_exit_128_plus_the_signal(
+    replay_dir, tmp_path, monkeypatch, signum, capsys
+):
+    """`kill` (SIGTERM) or a closed terminal (SIGHUP) mid-motion, through the CLI's own
+    connection path: no servoJ target after the signal, then servoStop, stopScript and both
+    disconnects (what ur_rtde needs to end the servo stream), and one line with exit 143 / 129."""
+    from mog_drake.cli import main
+
+    sc = Scenario()
+    ur, control, receive = fake_ur5(sc.robot.home)
+    _fake_rtde_modules(monkeypatch, ur, control, receive)
+    sent = []
+
+    def kill(ur):
+        sent.append(len(ur.servo))
+        os.kill(os.getpid(), signum)
+
+    control.on_servo[40] = kill
+    before = signal.getsignal(signum)
+    with FakeRobotiq() as srv:
+        scenario = tmp_path / "hw.yaml"
+        scenario.write_text(
+            f"hardware: {{enabled: true, camera: !ReplaySource {{dir: '{replay_dir}'}}, "
+            f"gripper_port: {srv.port}, max_joint_speed: 3.5}}\ntime_limit: 10.0\n"
+        )
+        code = main(["pick", "--scenario", str(scenario), "--robot-ip", "127.0.0.1"])
+    err = capsys.readouterr().err
+    assert code == 128 + signum and err == f"mog-drake: terminated by {signal.Signals(signum).name}\n"
+    assert sent == [40] and len(ur.servo) == 40  # not one target more
+    calls = [c[0] for c in ur.calls if c[0] != "servoJ"]
+    assert calls[-4:] == ["servoStop", "stopScript", "disconnect_control", "disconnect_receive"], calls
+    assert signal.getsignal(signum) == before  # the handlers the run replaced are back
+
+
 def test_dry_run_logs_commands_and_sends_nothing(replay_dir, tmp_path):
     from mog_drake.systems.pick import run_pick
 
     log = tmp_path / "commands.jsonl"
     sc = Scenario(
-        hardware=_hw(replay_dir, dry_run=True, command_log=str(log), max_joint_speed=3.5), time_limit=4.0
+        hardware=_hw(
+            replay_dir,
+            dry_run=True,
+            command_log=str(log),
+        ),
+        time_limit=4.0,
     )
     run_pick(sc)
     lines = [json.loads(x) for x in log.read_text().splitlines()]
@@ -534,18 +559,41 @@ def test_a_refused_arm_command_ends_pick_with_one_line_and_exit_3(replay_dir, tm
     sc = Scenario()
     ur, control, receive = fake_ur5(sc.robot.home)
     _fake_rtde_modules(monkeypatch, ur, control, receive)
+    # The palm may not go more than 2 cm below where it starts: the descent to the first grasp
+    # is refused by the driver's safety monitor.
+    floor = _safety(sc).palm_position(sc.robot.home)[2] - 0.02
     with FakeRobotiq() as srv:
         scenario = tmp_path / "hw.yaml"
-        # The arm is planned at 3.14 rad/s; the driver allows 0.2: the first motion is refused.
         scenario.write_text(
             f"hardware: {{enabled: true, camera: !ReplaySource {{dir: '{replay_dir}'}}, "
-            f"gripper_port: {srv.port}, max_joint_speed: 0.2}}\ntime_limit: 4.0\n"
+            f"gripper_port: {srv.port}, max_joint_speed: 3.5, "
+            f"workspace: [-0.45, 0.45, -0.45, 0.55, {floor:.4f}, 0.9]}}\ntime_limit: 8.0\n"
         )
         code = main(["pick", "--scenario", str(scenario), "--robot-ip", "127.0.0.1"])
     err = capsys.readouterr().err
     assert code == 3
-    assert err.startswith("mog-drake: error: UR5: refused command: joint") and err.count("\n") == 1, err
+    assert err.startswith("mog-drake: error: UR5: refused command: palm") and err.count("\n") == 1, err
+    assert "outside the workspace box" in err
     assert ("servoStop",) in ur.calls and ("disconnect_control",) in ur.calls
+
+
+def test_a_hardware_scenario_planned_faster_than_its_driver_allows_is_refused_at_load(
+    tmp_path, monkeypatch, capsys
+):
+    """Planned at 3.14 rad/s, the driver allowing 0.2: one line naming both keys, exit 2,
+    and nothing connected."""
+    from mog_drake.cli import main
+
+    sc = Scenario()
+    ur, control, receive = fake_ur5(sc.robot.home)
+    _fake_rtde_modules(monkeypatch, ur, control, receive)
+    scenario = tmp_path / "hw.yaml"
+    scenario.write_text("hardware: {enabled: true, max_joint_speed: 0.2}\n")
+    code = main(["pick", "--scenario", str(scenario), "--robot-ip", "127.0.0.1"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "robot.max_joint_speed 3.14" in err and "hardware.max_joint_speed 0.2" in err
+    assert ur.calls == []
 
 
 def test_gripper_cli_against_a_fake_gripper(capsys):
@@ -622,7 +670,7 @@ def test_a_push_on_hardware_streams_within_the_limits_with_the_jaws_closed(repla
         return PickDecision("push", group=(0, 1), expected=(0, 1), push=push, now=1)
 
     monkeypatch.setattr(ls, "next_pick", push_now)
-    sc = Scenario(hardware=_hw(replay_dir, max_joint_speed=3.5), time_limit=4.0)
+    sc = Scenario(hardware=_hw(replay_dir), time_limit=4.0)
     sc.planner.mode = "push-mog"
     ur, control, receive = fake_ur5(sc.robot.home)
     with FakeRobotiq() as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client:

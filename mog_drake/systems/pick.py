@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from mog_drake.errors import HardwareFault
+from mog_drake.errors import HardwareFault, stop_on_signals
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.clock import caller_clock
 from mog_drake.planning.planner import GraspPlanner
@@ -281,11 +281,9 @@ def run_pick(
     paced by the wall clock (`WallClockPacer`), as on hardware.
 
     On the hardware station the arm is stopped and every connection closed at the end of the
-    run, on a fault and on Ctrl-C; a fault raises `HardwareFault` with its one-line reason."""
+    run, on a fault, on Ctrl-C and on SIGTERM or SIGHUP (`Terminated`); a fault raises
+    `HardwareFault` with its one-line reason."""
     t0 = time.perf_counter()
-    diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
-    handles = parts["handles"]
-    faults = getattr(handles, "faults", None)
     hw = scenario.hardware
     # A real arm runs at wall pace, whatever the caller asked: its drivers check speed in
     # wall-clock time and would refuse a simulation running flat out.
@@ -293,19 +291,22 @@ def run_pick(
     # The Diagram's thread waits for the GIL at most this long while a planning job holds it
     # (see mog_drake.systems.jobs).
     switch = sys.getswitchinterval()
-    sys.setswitchinterval(0.001)
-    try:
-        return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
-    except RuntimeError:
-        if faults:
-            raise HardwareFault(faults.reason) from None
-        raise
-    finally:
-        sys.setswitchinterval(switch)
-        if hasattr(handles, "shutdown"):
-            handles.shutdown()  # the arm first: a running job may take seconds to end
-        parts["perception"].shutdown()
-        parts["planner"].shutdown()
+    with stop_on_signals():  # SIGTERM and SIGHUP end the run through the finally below
+        diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
+        try:
+            sys.setswitchinterval(0.001)
+            return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
+        except RuntimeError:
+            faults = getattr(parts["handles"], "faults", None)
+            if faults:
+                raise HardwareFault(faults.reason) from None
+            raise
+        finally:
+            sys.setswitchinterval(switch)
+            if hasattr(parts["handles"], "shutdown"):
+                parts["handles"].shutdown()  # the arm first: a running job may take seconds to end
+            parts["perception"].shutdown()
+            parts["planner"].shutdown()
 
 
 def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
