@@ -16,6 +16,7 @@ import numpy as np
 
 from mog_drake.errors import MogError, Terminated, stop_on_signals
 from mog_drake.experiments.bench import BENCHES
+from mog_drake.outputs import check_writable, write_atomic
 from mog_drake.planning.config import MODES
 from mog_drake.tables import format_table
 
@@ -204,8 +205,7 @@ def _simulate(scene, group, grasp, args):
         config.physics.force_limit = args.force
     res = DrakeVerifier(config, meshcat=meshcat).check(scene, group, grasp)
     if args.record:
-        Path(args.record).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.record).write_text(meshcat.StaticHtml())
+        write_atomic(args.record, meshcat.StaticHtml())
     return res
 
 
@@ -317,6 +317,7 @@ def _cmd_eval(args) -> int:
             args.ray,
             progress,
             scenario,
+            args.compare,
         )
         text = picking_eval.report(summary, results, out, args.compare)
     elif args.experiment == "conditions":
@@ -417,8 +418,7 @@ def cmd_pick(args) -> int:
     run = run_pick(sc, meshcat=meshcat, on_attempt=line, realtime=hw and not sc.hardware.dry_run)
     summary = run.summary()
     if args.record:
-        Path(args.record).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.record).write_text(meshcat.StaticHtml())
+        write_atomic(args.record, meshcat.StaticHtml())
         summary["replay"] = args.record
     _emit(
         args,
@@ -778,6 +778,7 @@ def check_args(args) -> None:
             raise MogError(
                 f"--{name} {v}: unknown file type {path.suffix or '(none)'} (use {', '.join(suffixes)})"
             )
+        check_writable(path, f"--{name}")
     out = getattr(args, "out", None)
     if out and Path(out).exists() and not Path(out).is_dir():
         raise MogError(f"--out {out} is a file: give a folder")

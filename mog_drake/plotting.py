@@ -12,6 +12,7 @@ from matplotlib.patches import Polygon as MplPolygon
 
 from mog_drake.geometry.conditions import GraspEvaluation
 from mog_drake.geometry.gripper import GripperGeometry
+from mog_drake.outputs import atomic_path
 
 VERDICT_COLORS = {"collision": "#9e9e9e", "diameter": "#e67e22", "area": "#c0392b", "passed": "#27ae60"}
 
@@ -130,8 +131,8 @@ def scene_figure(
 
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
+    with atomic_path(path) as tmp:  # a killed write leaves the earlier figure whole
+        fig.savefig(tmp, dpi=130)
     plt.close(fig)
     return path
 

@@ -456,3 +456,27 @@ def test_random_malformed_scenarios_end_in_a_mog_error_or_a_checked_scenario(pai
 
     check_scenario(sc)
     assert all(math.isfinite(v) for _, v in _finite_leaves(sc))
+
+
+def test_an_unwritable_record_path_is_refused_before_the_run(tmp_path, capsys, monkeypatch):
+    """A --record path under a file cannot be written: one line and exit 2, before any run."""
+    import mog_drake.systems.pick as pick
+
+    monkeypatch.setattr(pick, "run_pick", lambda *a, **kw: pytest.fail("the run started"))
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    code = main(["pick", "--objects", "2", "--record", str(blocker / "replay.html")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--record" in err and "cannot be written" in err, err
+
+
+def test_a_write_cut_short_leaves_the_earlier_file_whole(tmp_path):
+    from mog_drake.outputs import atomic_path, write_atomic
+
+    path = write_atomic(tmp_path / "replay.html", "<html>earlier</html>")
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_path(path) as tmp:
+            tmp.write_text("<html>half of a new")
+            raise KeyboardInterrupt  # a signal in the middle of the write
+    assert path.read_text() == "<html>earlier</html>"
+    assert [p.name for p in tmp_path.iterdir()] == ["replay.html"]  # no temporary left behind

@@ -280,6 +280,55 @@ def test_two_picking_sweeps_are_compared_table_by_table():
         picking_eval.compare(a[2:3], b)
 
 
+def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, capsys):
+    """A 3-object sweep compared with a 2-object one: one line naming the difference, exit 2,
+    and the new sweep's folder not even made. Sweeps of the same tables with other settings
+    (what --compare is for) are accepted."""
+    from mog_drake.cli import main
+
+    a = tmp_path / "a"
+    a.mkdir()
+    params = {
+        "experiment": "picking",
+        "seed": 0,
+        "modes": ["mog"],
+        "objects": 3,
+        "time_limit": 60.0,
+        "scenes": 1,
+    }
+    (a / "sweep.json").write_text(json.dumps(params))
+    out = tmp_path / "b"
+    code = main(
+        [
+            "eval",
+            "picking",
+            "--scenes",
+            "1",
+            "--modes",
+            "mog",
+            "--objects",
+            "2",
+            "--time-limit",
+            "60",
+            "--out",
+            str(out),
+            "--compare",
+            str(a),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "ran other tables (objects 3, here 2)" in err, err
+    assert not out.exists()
+    with pytest.raises(MogError, match="seed 0, here 1"):
+        picking_eval.check_comparable(a, {**params, "seed": 1})
+    with pytest.raises(MogError, match="table"):
+        picking_eval.check_comparable(a, {**params, "scenario": "table: [-0.2, 0.2, -0.3, 0.3]\n"})
+    picking_eval.check_comparable(a, {**params, "scenario": "planner: {lookahead: false}\n", "scenes": 5})
+    (a / "sweep.json").write_text("[]")
+    with pytest.raises(MogError, match="not a picking sweep"):
+        picking_eval.check_comparable(a, params)
+
+
 def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
     timed = {"robot_time_s": 80.0, "cycle_time_s": 100.0, "wait_planning_s": 15.0, "wait_perception_s": 5.0}
     sog_timed = {

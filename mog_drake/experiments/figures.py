@@ -7,6 +7,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from mog_drake.outputs import atomic_path
+
 # The paper's figures (REFERENCE Sec. 3), drawn beside ours.
 PAPER_TN_BY_CLASS = {"2": 96.0, "3": 85.5, "4": 96.3, "5": 93.3, "6": 93.9, "7": 95.2}
 PAPER_PLANNING_TIME = {"gp": 2.2, "rand-phys": 41.8, "rank-phys": 28.4, "rand-fil-phys": 3.1}
@@ -71,9 +73,9 @@ def planner_figure(summary: dict, path: str | Path) -> Path:
 
 def _save(fig, path) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    with atomic_path(path) as tmp:  # a killed write leaves the earlier figure whole
+        fig.savefig(tmp, dpi=130)
     plt.close(fig)
     return path
 

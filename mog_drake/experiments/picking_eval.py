@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import statistics
 from collections import Counter
+from pathlib import Path
 
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
@@ -196,6 +197,51 @@ PAIRED = {
 COMPARE_COLUMNS = ["mode", "metric", "tables", "a", "b", "b_minus_a", "ci"]
 
 
+def tables_of(params: dict) -> dict:
+    """What decides a picking sweep's tables, from its parameters (sweep.json): the seed, the
+    objects and the time limit (each run's `task_scenario` sets the scene from them, on the
+    default isrr33 inventory), and its scenario's table."""
+    from mog_drake.scenario import Scenario, scenario_from_text
+
+    text = params.get("scenario")
+    sc = scenario_from_text(text, "the sweep's scenario") if text else Scenario()
+    return {
+        "seed": params.get("seed"),
+        "objects": params.get("objects"),
+        "time_limit": params.get("time_limit"),
+        "table": list(sc.table),
+    }
+
+
+def check_comparable(compare_dir, params: dict) -> None:
+    """Refuses, before a sweep runs, to pair it with the sweep in ``compare_dir`` unless both
+    ran the same tables (`tables_of`): the one line names the first difference."""
+    import json
+
+    from mog_drake.errors import MogError
+
+    where = Path(compare_dir) / "sweep.json"
+    if not where.is_file():
+        raise MogError(f"--compare: {where} does not exist (give a picking sweep's --out folder)")
+    try:
+        other = json.loads(where.read_text())
+    except (ValueError, UnicodeDecodeError):
+        raise MogError(f"--compare: {where} is not a sweep's parameters (JSON)") from None
+    if not isinstance(other, dict) or other.get("experiment") != "picking":
+        raise MogError(f"--compare: {where} is not a picking sweep")
+    a, b = tables_of(other), tables_of(params)
+    for key in a:
+        if a[key] != b[key]:
+            raise MogError(
+                f"--compare: {compare_dir} ran other tables ({key} {_short(a[key])}, here {_short(b[key])})"
+            )
+
+
+def _short(value, n: int = 80) -> str:
+    text = str(value)
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
 def compare(results_a: list[dict], results_b: list[dict]) -> dict:
     """Sweep B against sweep A on the tables both ran (same key and table seed): per mode and
     metric, both means and the mean paired difference B - A with its 95 % t interval (the
@@ -314,9 +360,12 @@ def run(
     ray_address=None,
     progress: bool = True,
     scenario: str = "",
+    compare_dir: str | None = None,
 ) -> tuple[dict, list[dict]]:
     """``scenario``: YAML text of a base scenario (as ``mog-drake pick --scenario`` reads it)
-    whose settings every run uses, except the table, time limit, mode and seed set here."""
+    whose settings every run uses, except the table, time limit, mode and seed set here.
+    ``compare_dir``: a sweep this one will be paired with, refused first unless it ran the
+    same tables (`check_comparable`)."""
     modes = list(modes)
     params = {
         "experiment": "picking",
@@ -328,6 +377,8 @@ def run(
     }
     if scenario:
         params["scenario"] = scenario
+    if compare_dir:
+        check_comparable(compare_dir, params)
     # More tables, or another mode on the same tables, extend a sweep (runs are keyed by both).
     check_params(out_dir, params, growable=("scenes", "modes"))
     todo = tasks(scenes, modes, seed, objects, time_limit, scenario)
