@@ -189,7 +189,7 @@ def cmd_check(args) -> int:
 
 def _simulate(scene, group, grasp, args):
     """Runs the physics verifier on one grasp, optionally shown in Meshcat and recorded."""
-    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+    from mog_drake.sim.verifier import DrakeVerifier
 
     meshcat = None
     if args.meshcat or args.record:
@@ -198,12 +198,17 @@ def _simulate(scene, group, grasp, args):
         meshcat = StartMeshcat()
         if args.meshcat:
             print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
-    config = VerifierConfig()
+    from dataclasses import replace
+
+    from mog_drake.scenario import load_scenario
+
+    sc = load_scenario(args.scenario)
+    physics = sc.gripper
     if args.force is not None:
         if not (0 < args.force <= 235):
             raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {args.force}")
-        config.physics.force_limit = args.force
-    res = DrakeVerifier(config, meshcat=meshcat).check(scene, group, grasp)
+        physics = replace(physics, force_limit=args.force)
+    res = DrakeVerifier(sc.verifier, physics=physics, meshcat=meshcat).check(scene, group, grasp)
     if args.record:
         write_atomic(args.record, meshcat.StaticHtml())
     return res
@@ -504,10 +509,10 @@ def cmd_bench(args) -> int:
         args.scenes,
         args.seed,
         args.toppled,
-        args.candidates,
-        args.window,
         progress=not args.json,
         budget=args.budget or 0.0,
+        tables=args.tables,
+        out=args.out or "out/bench_verifier",
     )
     _emit(args, doc, text)
     return 0
@@ -583,6 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--record", metavar="HTML", help="write a self-contained Meshcat replay (implies --simulate)"
     )
     sp.add_argument("--force", type=float, help="grip force limit per jaw in N (default 40)")
+    sp.add_argument(
+        "--scenario", help="scenario YAML whose verifier and gripper the simulation uses (default: built-in)"
+    )
     sp.set_defaults(func=cmd_check)
 
     sp = sub.add_parser("candidates", help="every grasp candidate with its figures, ranked by A_T")
@@ -694,13 +702,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--scenes",
         type=int,
         default=20,
-        help="scenes per class (geometry, verifier); tables (perception, replanning, hold, bodies, table, surface, checks); copies per shape (rest)",
+        help="scenes per class (geometry, verifier); tables (perception, replanning); copies per shape (rest)",
     )
-    sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
-    sp.add_argument("--candidates", type=int, default=60, help="agreement: candidates to compare")
     sp.add_argument(
-        "--window", type=float, default=0.5, help="hold: s every object must stay settled to end the hold"
+        "--tables", type=int, default=3, help="verifier: 33-object tables whose checks are replayed"
     )
+    sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
+    sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument(
         "--budget",
         type=float,
@@ -756,6 +764,9 @@ def check_args(args) -> None:
         v = getattr(args, name, None)
         if v is not None and not isinstance(v, bool) and v < 1:
             raise MogError(f"--{name.replace('_', '-')} must be at least 1, got {v}")
+    tables = getattr(args, "tables", None)
+    if tables is not None and tables < 0:
+        raise MogError(f"--tables must be at least 0, got {tables}")
     seed = getattr(args, "seed", None)
     if seed is not None and not 0 <= seed < 2**63:
         raise MogError(f"--seed must be a whole number >= 0, got {seed}")

@@ -119,10 +119,10 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     binary = tmp_path / "bin.yaml"
     binary.write_bytes(bytes(range(256)) * 4)
     one_line_error(*_pick(capsys, binary)[::2], "not a text file")
-    typed = _write(tmp_path, "typed.yaml", "planner: {hold_s: abc}\n")
-    one_line_error(*_pick(capsys, typed)[::2], "planner.hold_s", "abc")
-    bodies = _write(tmp_path, "bodies.yaml", "planner: {check_bodies: all}\n")
-    one_line_error(*_pick(capsys, bodies)[::2], "planner.check_bodies", "all")
+    typed = _write(tmp_path, "typed.yaml", "verifier: {hold_time: abc}\n")
+    one_line_error(*_pick(capsys, typed)[::2], "verifier.hold_time", "abc")
+    bodies = _write(tmp_path, "bodies.yaml", "verifier: {bodies: all}\n")
+    one_line_error(*_pick(capsys, bodies)[::2], "verifier.bodies", "all")
     table = _write(tmp_path, "table.yaml", "contact: {table_collision: plane}\n")
     one_line_error(*_pick(capsys, table)[::2], "contact.table_collision", "plane")
     surface = _write(tmp_path, "surface.yaml", "contact: {plant: {contact_surface_representation: quad}}\n")
@@ -413,11 +413,12 @@ _scenario_keys = st.sampled_from(
         "gripper.close_speed",
         "camera.width",
         "camera.z_far",
-        "planner.hold_s",
+        "verifier.hold_time",
+        "verifier.hold_window",
         "planner.group_radius",
         "planner.mode",
         "planner.diameter_condition",
-        "planner.check_bodies",
+        "verifier.bodies",
         "planner.decision_budget_s",
         "planner.push_speed",
         "planner.max_pushes",

@@ -86,63 +86,10 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     png = tmp_path / "g.png"
     code, _, err = run(capsys, "scene", "show", str(scene), "--grasp", "0", "0", "0", "-o", str(png))
     assert code == 0 and png.stat().st_size > 10_000, err
-    code, _, err = run(capsys, "bench", "agreement", "--candidates", "0")
-    assert code == 2 and "--candidates must be at least 1" in err
-    code, _, err = run(capsys, "bench", "hold", "--window", "0")
-    assert code == 2 and "--window must be a positive number, got 0.0" in err and err.count("\n") == 1
+    code, _, err = run(capsys, "bench", "verifier", "--tables", "-1")
+    assert code == 2 and "--tables must be at least 0, got -1" in err and err.count("\n") == 1
     code, _, err = run(capsys, "bench", "rest", "--scenes", "26")
     assert code == 2 and "copies per shape (--scenes) must be 1..25, got 26" in err and err.count("\n") == 1
-
-
-def test_the_hold_bench_compares_the_whole_hold_with_the_settled_one():
-    from mog_drake.experiments.bench.physics import hold_verifiers
-    from mog_drake.scenario import Scenario
-
-    # The built-in scenario ends its holds once settled: the reference must not.
-    planner, ref, fast = hold_verifiers(0.3)
-    assert Scenario().planner.settle_window_s > 0 and planner.verifier.config.settle_window > 0
-    assert ref.config.settle_window == 0.0 and fast.config.settle_window == 0.3
-    assert ref.config.hold_time == fast.config.hold_time == Scenario().planner.hold_s
-
-
-def test_the_checks_bench_fits_the_modelled_cost_of_a_check_and_drops_a_negative_term():
-    """`bench checks`: checks made up to cost 0.2 + 0.13 s per body and simulated second
-    give back those terms; checks that get cheaper with simulated time give a slope of 0 and
-    the mean as the cost of a check."""
-    import numpy as np
-
-    from mog_drake.experiments.bench.physics import fit_work_cost
-
-    rng = np.random.default_rng(0)
-    sim, bodies = rng.uniform(0.6, 3.5, 200), rng.integers(1, 11, 200)
-    fit = fit_work_cost(0.2 + 0.13 * sim * bodies, sim, bodies)
-    assert (fit.check_s, fit.sim_s, fit.body_sim_s) == pytest.approx((0.2, 0.0, 0.13), abs=1e-6)
-    falling = 2.0 - 0.1 * sim
-    fit = fit_work_cost(falling, sim, np.zeros(200))
-    assert fit.sim_s == 0.0 and fit.body_sim_s == 0.0 and fit.check_s == pytest.approx(falling.mean())
-
-
-def test_each_pair_bench_changes_its_one_setting_and_leaves_the_planners_untouched():
-    """`bench bodies`, `table` and `surface`: each side of a pair is the planner's check with
-    that one setting changed, found by its path; the planner's own config is not changed."""
-    from mog_drake.experiments.bench.physics import PAIRS, with_setting
-    from mog_drake.scenario import Scenario
-    from mog_drake.systems.pick import make_planner
-
-    base = make_planner(Scenario()).verifier.config
-    before = repr(base)
-    for what, sides in PAIRS.items():
-        for _, path, value in sides:
-            got = with_setting(base, path, value)
-            node = got
-            for name in path.split("."):
-                node = getattr(node, name)
-            assert node == value, (what, path)
-            assert got.hold_time == base.hold_time and got.physics == base.physics
-    assert repr(base) == before
-    surface = "contact.plant.contact_surface_representation"
-    assert base.contact.plant.contact_surface_representation == "polygon"
-    assert with_setting(base, surface, "triangle").contact.table_collision == base.contact.table_collision
 
 
 def test_every_eval_takes_summary_only(tmp_path, capsys):
@@ -182,6 +129,8 @@ def test_picking_sweeps_compare_from_the_command_line(tmp_path, capsys):
             }
             lines.append(json.dumps({**t, "summary": summary, "attempts": []}))
         (folder / "results.jsonl").write_text("\n".join(lines) + "\n")
+        params = {"experiment": "picking", "seed": 0, "modes": ["mog"], "objects": 33, "time_limit": 900.0}
+        (folder / "sweep.json").write_text(json.dumps({**params, "scenes": 2}))
 
     sweep(tmp_path / "a", 400.0)
     sweep(tmp_path / "b", 450.0)

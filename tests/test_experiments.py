@@ -404,21 +404,19 @@ def test_the_arms_wait_is_summarised_as_its_median_share_of_robot_time():
 
 def test_the_arms_wait_is_split_by_what_the_decision_had_from_the_lookahead():
     """Each idle gap before an attempt or a push (from the end of the one before) goes to its
-    decision's kind: the table's first, then by its lookahead; assisted ones are counted too,
-    and the groups the lookahead's assistant planned."""
+    decision's kind: the table's first, then by its lookahead."""
     run = {
         "mode": "mog",
         "summary": {"robot_time_s": 20.0},
         "attempts": [
-            {"start": 2.0, "end": 8.0, "lookahead": "", "assisted": True},
-            {"start": 9.0, "end": 15.0, "lookahead": "used", "assisted": True, "helped": 2},
-            {"start": 18.0, "end": 24.0, "lookahead": "merged", "helped": 1},
+            {"start": 2.0, "end": 8.0, "lookahead": ""},
+            {"start": 9.0, "end": 15.0, "lookahead": "used"},
+            {"start": 18.0, "end": 24.0, "lookahead": "merged"},
         ],
         "pushes": [{"start": 15.5, "end": 17.0, "lookahead": "dropped"}],
     }
     w = picking_eval.wait_by_decision([run])
     assert (w["first"], w["used"], w["dropped"], w["merged"], w[""]) == (2.0, 1.0, 0.5, 1.0, 0.0)
-    assert (w["assisted"], w["assisted_s"], w["robot_time_s"], w["helped"]) == (2, 3.0, 20.0, 3)
+    assert w["robot_time_s"] == 20.0
     text = picking_eval.wait_text([run], ["mog"])
     assert "the arm waited 4 s (22.5 % of robot time)" in text
-    assert "3 groups planned for the lookahead on the planner's core" in text

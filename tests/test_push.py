@@ -219,10 +219,10 @@ def test_a_push_the_lookahead_found_to_pay_is_replayed_with_no_physics_while_its
 
 def test_a_simulated_push_moves_its_object_where_the_geometry_said_on_a_table_with_friction():
     from mog_drake.scenario import Scenario
-    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+    from mog_drake.sim.verifier import DrakeVerifier
 
     sc = Scenario()
-    v = DrakeVerifier(VerifierConfig(contact=sc.planner_contact, physics=sc.gripper))
+    v = DrakeVerifier(sc.verifier, physics=sc.gripper)
     scene = make_scene(BARS)
     p = push_between(scene.polygons(), 0, 1, v.gripper)
     r = v.push(scene, p, speed=0.05)

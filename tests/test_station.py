@@ -511,10 +511,10 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     from mog_drake.experiments import picking_eval
     from mog_drake.experiments.sweep import summary_only
 
-    text = "planner:\n  group_radius: 0.045\n  hold_s: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
+    text = "planner:\n  group_radius: 0.045\nverifier:\n  hold_time: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
     (task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0, scenario=text)
     sc = picking_eval.task_scenario(task)
-    assert (sc.planner.group_radius, sc.planner.hold_s, sc.robot.max_joint_speed) == (0.045, 1.5, 2.0)
+    assert (sc.planner.group_radius, sc.verifier.hold_time, sc.robot.max_joint_speed) == (0.045, 1.5, 2.0)
     assert (sc.planner.mode, sc.planner.seed, sc.scene.seed, sc.scene.n_objects) == (
         "sog",
         4_000_000,
@@ -684,14 +684,14 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     f.write_text("robot:\n  reach: 0.0\n")
     with pytest.raises(MogError, match=r"robot.reach must be in \(0, 2\], got 0.0"):
         load_scenario(str(f))
-    f.write_text("planner:\n  hold_s: 0\n")
-    with pytest.raises(MogError, match="hold_s must be in"):
+    f.write_text("verifier:\n  hold_time: 0\n")
+    with pytest.raises(MogError, match="verifier.hold_time must be in"):
         load_scenario(str(f))
     f.write_text("planner:\n  group_radius: 35\n")  # millimetres by mistake
     with pytest.raises(MogError, match="group_radius must be in .* got 35"):
         load_scenario(str(f))
-    f.write_text("planner:\n  settle_window_s: 3.0\n")
-    with pytest.raises(MogError, match=r"settle_window_s must be in \[0, hold_s = 2.5\] s, got 3.0"):
+    f.write_text("verifier:\n  hold_window: 3.0\n")
+    with pytest.raises(MogError, match=r"verifier.hold_window must be in \[0, hold_time = 2.5\] s, got 3.0"):
         load_scenario(str(f))
     f.write_text("planner:\n  grouping: nearest\n")
     with pytest.raises(MogError, match="planner.grouping must be one of radius, conditions, got 'nearest'"):

@@ -200,16 +200,22 @@ COMPARE_COLUMNS = ["mode", "metric", "tables", "a", "b", "b_minus_a", "ci"]
 def tables_of(params: dict) -> dict:
     """What decides a picking sweep's tables, from its parameters (sweep.json): the seed, the
     objects and the time limit (each run's `task_scenario` sets the scene from them, on the
-    default isrr33 inventory), and its scenario's table."""
-    from mog_drake.scenario import Scenario, scenario_from_text
+    default isrr33 inventory), and its scenario's table (read alone: a sweep made with
+    settings since removed still names its tables)."""
+    import yaml
 
-    text = params.get("scenario")
-    sc = scenario_from_text(text, "the sweep's scenario") if text else Scenario()
+    from mog_drake.scenario import Scenario
+
+    try:
+        doc = yaml.safe_load(params.get("scenario") or "") or {}
+    except yaml.YAMLError:
+        doc = {}
+    table = doc.get("table", Scenario().table) if isinstance(doc, dict) else Scenario().table
     return {
         "seed": params.get("seed"),
         "objects": params.get("objects"),
         "time_limit": params.get("time_limit"),
-        "table": list(sc.table),
+        "table": [float(v) for v in table],
     }
 
 
@@ -404,10 +410,8 @@ WAIT_KINDS = {
 def wait_by_decision(runs: list[dict]) -> dict:
     """Where the arm waited for compute: the idle time before each attempt or push (from the
     end of the one before, or the run's start), by what the decision it waited for had from
-    the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time,
-    and the waits and count of the decisions planned with the assistant ("assisted"), and the
-    groups the lookahead's assistant planned ("helped")."""
-    out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0, "assisted_s": 0.0, "assisted": 0, "helped": 0}
+    the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time."""
+    out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0}
     for r in runs:
         events = sorted(
             r.get("attempts", []) + [p for p in r.get("pushes", []) if "end" in p], key=lambda e: e["start"]
@@ -417,10 +421,6 @@ def wait_by_decision(runs: list[dict]) -> dict:
             wait = max(0.0, e["start"] - end)
             kind = "first" if k == 0 else e.get("lookahead", "")
             out[kind if kind in out else ""] += wait
-            out["helped"] += e.get("helped", 0)
-            if e.get("assisted"):
-                out["assisted_s"] += wait
-                out["assisted"] += 1
             end = e["end"]
         out["robot_time_s"] += r["summary"].get("robot_time_s", 0.0)
     return out
@@ -436,12 +436,7 @@ def wait_text(results: list[dict], modes) -> str:
         pts = 100.0 / w["robot_time_s"]
         total = sum(w[k] for k in WAIT_KINDS)
         parts = "; ".join(f"{text} {w[k]:.0f} s ({w[k] * pts:.1f})" for k, text in WAIT_KINDS.items() if w[k])
-        line = f"{m}: the arm waited {total:.0f} s ({total * pts:.1f} % of robot time): {parts}"
-        if w["assisted"]:
-            line += f"; {w['assisted']} decisions planned with the assistant: {w['assisted_s']:.0f} s of it"
-        if w["helped"]:
-            line += f"; {w['helped']} groups planned for the lookahead on the planner's core"
-        lines.append(line)
+        lines.append(f"{m}: the arm waited {total:.0f} s ({total * pts:.1f} % of robot time): {parts}")
     return "\n".join(lines)
 
 

@@ -35,20 +35,6 @@ class PlannerSpec:
     # it on to another final diameter: a thin bar held end to end (8 deg) can be twisted out of
     # the jaws by the swing to the bin. Every other library shape has 14 deg or more.
     min_squeeze_margin_deg: float = 12.0
-    # The physics check holds a lifted grasp this long before its verdict: as long as the arm
-    # takes to lift it and carry it to the bin (about 2.6 s). A thin bar lying on its side,
-    # held end to end by the bottom 5 mm of its end faces, lifts, creeps in the jaws and slips
-    # out about 2 s later: the 0.2 s hold of the paper's experiments passes it.
-    hold_s: float = 2.5
-    # End that hold once every lifted object has stayed settled (under 1 mm/s) this long, 0:
-    # never (an extension; see VerifierConfig.settle_window). `mog-drake bench hold` on 16
-    # tables: the same verdict on all 178 checks, 33 % less time.
-    settle_window_s: float = 0.5
-    # Which objects the physics check simulates besides the group (an extension; see
-    # VerifierConfig.bodies): "group", every object any grasp of the group can reach; or
-    # "grasp", only what this grasp's jaws and the group can touch. `mog-drake bench bodies`
-    # compares the two on the grasps the picking planner checks.
-    check_bodies: str = "grasp"
     # After a failed physics check, try a new closing axis before other points on a failed one
     # (an extension; the paper's experiments go down the ranked list).
     vary_axis: bool = True
@@ -85,24 +71,8 @@ class PlannerSpec:
     # visible by then in simulated time are replayed, and a group the lookahead is simulating
     # then is waited for, not simulated twice (off: the lookahead is dropped). It never
     # simulates more than a plan without them. (Waiting for the whole lookahead instead was
-    # tried and measured worse: docs/experiments.md, session 18.)
+    # tried and measured worse: docs/experiments.md.)
     merge_lookahead: bool = True
-    # With the lookahead's core idle when a decision starts (each table's first decision, and
-    # those whose lookahead was in time), half the groups the decision must simulate are
-    # planned there, beside it (measured latencies; mog and push-mog, with the lookahead and
-    # the ranked planners, whose checks are deterministic, and no decision_budget_s): the
-    # decision replays their verdicts, and Alg. 1's choice is unchanged (see
-    # mog_drake.planning.picking.assist). Off by default: on mog tables 0-3 (v12) the arm
-    # waited longer, as the check it had under way when the decision was done delayed the
-    # next lookahead; such a check is now stopped mid-simulation (clock.interruptible), and
-    # the assistant is being measured again (docs/experiments.md, sessions 22 and 24).
-    assist: bool = False
-    # While the arm moves, the planner's own core is idle until the next image: half the
-    # groups the lookahead must simulate are planned there, beside it, on the same terms as
-    # ``assist`` (its board both ways; it stops at the next image, mid-check, when the
-    # decision needs the core). The lookahead is then late less often. Off by default while
-    # it is measured (docs/experiments.md, session 24).
-    assist_lookahead: bool = False
     # push-mog: pushes per table at most; pushes simulated per decision (each followed by the
     # plan of the grasp it sets up); the push's mean speed (m/s); how far apart (centres, m)
     # an object and the one it is pushed to may start.
@@ -151,16 +121,8 @@ class PlannerSpec:
             raise MogError(
                 f"planner: min_squeeze_margin_deg must be in [0, 90), got {self.min_squeeze_margin_deg}"
             )
-        if not 0 < self.hold_s <= 30:
-            raise MogError(f"planner: hold_s must be in (0, 30] s, got {self.hold_s}")
-        if not 0 <= self.settle_window_s <= self.hold_s:
-            raise MogError(
-                f"planner: settle_window_s must be in [0, hold_s = {self.hold_s:g}] s, got {self.settle_window_s}"
-            )
         if not 0 <= self.decision_budget_s <= 600:
             raise MogError(f"planner: decision_budget_s must be in [0, 600] s, got {self.decision_budget_s}")
-        if self.check_bodies not in ("group", "grasp"):
-            raise MogError(f"planner.check_bodies must be one of group, grasp, got {self.check_bodies!r}")
         if not 0 < self.group_radius <= 0.2:
             raise MogError(f"planner: group_radius must be in (0, 0.2] m, got {self.group_radius}")
         if self.max_pushes < 0 or self.push_checks < 0 or self.push_below < 0:

@@ -15,7 +15,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -209,7 +208,7 @@ class PickDecision:
     # simulated time it waited for them beyond its own clock (s).
     merged: bool = False
     waited: float = 0.0
-    from_board: int = 0  # verdicts taken from that board (the lookahead's or the assistant's)
+    from_board: int = 0  # verdicts taken from the lookahead's board
     # The entry of the grasp found, as posted on a board (``post``; see `lookahead`).
     found_entry: FailedGroup | None = None
     # What to remember for the next decision: failures seen (or replayed) now, then the older
@@ -311,8 +310,8 @@ def next_pick(
     each group it simulates (its claim), then each verdict.
 
     decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
-    that much time on the decision, on ``planner.clock`` (its CPU time, or its modelled
-    time), and holds a verified partial lift, no more groups are planned and no more
+    that much time on the decision, on ``planner.clock`` (its CPU time, or the wall
+    clock's), and holds a verified partial lift, no more groups are planned and no more
     candidates simulated: the partial lift is taken."""
     spec = spec or PlannerSpec()
     spec.check()
@@ -449,97 +448,6 @@ def _excluding(groups: list, exclude) -> list:
     return [g for g in groups if not excluded.intersection(g)]
 
 
-def assist(
-    scene,
-    planner: GraspPlanner,
-    spec: PlannerSpec,
-    main: BoardReader,
-    board: Board,
-    avoid=(),
-    failures=(),
-    exclude=(),
-    until: Callable[[float], bool] | None = None,
-) -> int:
-    """Plans, on a second core, half the groups the decision that `next_pick` plans on the same
-    image must simulate (an extension; see `PlannerSpec.assist`), and posts each verdict on
-    ``board``, which the decision reads (its ``late``). Returns the groups it planned.
-
-    The groups are Alg. 1's, in its order (push-mog: with the adjacent ones), less those
-    replayed from ``failures`` (with ``avoid``, as the decision replays them), which cost no
-    physics: this plans the second, fourth, ... of the rest, while the decision plans the
-    first, third, ... and waits for each of these when it gets there (or plans it itself if
-    this has not begun it by then: see `mog_drake.planning.board`). Alg. 1's choice is
-    unchanged: a group's physics gives one verdict on either core (the ranked planner's
-    candidates and checks are deterministic), and the decision takes the first group in
-    order with a grasp.
-
-    ``main`` reads the decision's own board. A group the decision has begun by this plan's
-    simulated time is skipped. It stops at its own first grasp (Alg. 1 would take no later
-    group), where a partial lift of an earlier group holds at least as many objects as the
-    group next (the decision stops there: see next_pick's partial_lifts), and as soon as the
-    decision has a grasp or is done, by this plan's simulated time (a check under way ends
-    first, then its group is not posted). A next job on this thread starts no earlier than it
-    ends (`Board`'s ``after``, `Worker.submit`'s ``delay``).
-
-    The same helps the lookahead (`lookahead`'s ``late``) on the planner's core, idle while
-    the arm moves: ``main`` then reads the lookahead's board, and ``until(t)`` is true once
-    the planner's core is needed by simulated time t (the next image: `board.Horizon.came`);
-    it stops then, as when the lookahead has a grasp or is done."""
-    board.start()
-    planned = 0
-
-    def final(e) -> bool:
-        return isinstance(e, FailedGroup) and e.result.found
-
-    def stopped() -> bool:
-        return main.stopped(final) or (until is not None and until(board.stamp()))
-
-    try:
-        if len(scene) == 0:
-            return 0
-        groups = _excluding(
-            _mog_groups(scene, planner, spec, ADJACENT_GAP if spec.mode == "push-mog" else 0.0), exclude
-        )
-        rank = {g: k for k, g in enumerate(groups)}
-        pending, todo, lifts = list(failures), [], []  # lifts: (rank, objects) of partial lifts
-        for g in groups:
-            around = _around(scene, g, planner.gripper)
-            res = _recall(pending, g, around, avoid)[1]
-            if res is None:
-                todo.append((g, around))
-            elif res.found:
-                break  # the decision takes this remembered grasp at the latest
-            elif res.best_lift is not None:
-                lifts.append((rank[g], len(res.best_lift[1])))
-        partial_lifts = spec.partial_lifts
-        for g, around in todo[1::2]:
-            if stopped():
-                break
-            seen = main.claims()
-            if any(_same_group(*c, g, around) is not None for c in seen):
-                continue
-            lifts += [
-                (rank[e.group], len(e.result.best_lift[1]))
-                for e in main.new()
-                if isinstance(e, FailedGroup) and e.group in rank and e.result.best_lift is not None
-            ]
-            if partial_lifts and any(k < rank[g] and n >= len(g) for k, n in lifts):
-                break
-            board.claim(g, around)
-            res = planner.plan(scene, g, avoid=avoid, stop=stopped)
-            if res.cut_short:
-                break
-            board.post(FailedGroup(tuple(res.group), around, res))
-            planned += 1
-            if res.found:
-                break
-            if res.best_lift is not None:
-                lifts.append((rank[g], len(res.best_lift[1])))
-        return planned
-    finally:
-        board.finish()
-
-
 def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]]:
     """Failed grasps per object, across images whose object ids differ.
 
@@ -592,7 +500,6 @@ def lookahead(
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     board: Board | None = None,
-    late: BoardReader | None = None,
 ) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
@@ -609,17 +516,12 @@ def lookahead(
 
     board: where the next decision, if its image comes first, reads this plan as it goes (see
     `mog_drake.planning.board`): each group as it is simulated, each verdict, and at the end
-    the rest of the memory. It is finished however this returns.
-
-    late: the board of its assistant on the planner's core (`assist` with ``until``), read
-    as a decision reads its assistant's: the verdicts it has posted by then are replayed, and
-    a group it is planning then is waited for. A verdict replayed is posted on ``board``
-    once its group comes up, and the rest at the end."""
+    the rest of the memory. It is finished however this returns."""
     if board is not None:
         board.start()
     try:
         memory = _lookahead(
-            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board, late
+            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board
         )
         if board is not None:
             for entry in memory:
@@ -637,7 +539,7 @@ def without_grasped(scene, decision: PickDecision) -> Scene:
     return replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
 
 
-def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board, late):
+def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board):
     rest = without_grasped(scene, decision)
     if len(rest) == 0:
         return ()
@@ -650,7 +552,6 @@ def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, p
         decision.failures,
         grasp_unrecognised,
         pushes_left=pushes_left,
-        late=late,
         post=board,
     )
     memory = list(ahead.failures)

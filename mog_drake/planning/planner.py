@@ -29,7 +29,6 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
-from mog_drake.planning.clock import interruptible
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
@@ -188,20 +187,14 @@ class GraspPlanner:
         skip=(),
         deadline: float | None = None,
         fallback: bool = False,
-        stop=None,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
         goes on where the earlier one stopped. ``deadline``: a time of this thread's ``clock``
-        (its CPU time unless set: `mog_drake.planning.clock.caller_clock`) past which no more
-        candidates are simulated once a verified grasp is in hand: this plan's partial lift,
-        or (``fallback``) the caller's. ``stop()``: true
-        once no more candidates are to be simulated (the plan is cut short: its caller no
-        longer needs it); it is asked before each candidate and, as the physics check goes,
-        during it (`mog_drake.planning.clock.interruptible`): a check it stops gives no
-        verdict and is not counted as tested."""
+        (its CPU time unless set) past which no more candidates are simulated once a verified
+        grasp is in hand: this plan's partial lift, or (``fallback``) the caller's."""
         method = method or self.config.method
         if method not in METHODS:
             raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
@@ -268,15 +261,7 @@ class GraspPlanner:
             if deadline is not None and (fallback or best_lift is not None) and self.clock() > deadline:
                 cut = True
                 break
-            if stop is not None and stop():
-                cut = True
-                break
-            with interruptible(stop):
-                res = self.verifier.check(scene, group, cands[i])
-            if res.interrupted:  # no verdict: as if it had stopped before this candidate
-                cut = True
-                break
-            last = res
+            last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
             held = last.complete and not last.error and last.lifted
             if held and (best_lift is None or len(last.lifted) > len(best_lift[1])):

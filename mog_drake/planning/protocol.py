@@ -29,9 +29,6 @@ class GraspResult:
     # False when the check stopped early because its verdict was already certain: ``lifted``
     # is then only what was in the air at that moment, not objects held to the end.
     complete: bool = True
-    # True when its caller stopped it mid-simulation (`mog_drake.planning.clock.interruptible`):
-    # no verdict at all.
-    interrupted: bool = False
 
     def text(self) -> str:
         opening = "-" if np.isnan(self.final_opening) else f"{self.final_opening * 1e3:.2f} mm"

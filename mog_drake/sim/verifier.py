@@ -6,8 +6,6 @@ closing jaws could reach; each grasp then only resets the context, so a planner 
 many candidates of one group pays the build once.
 """
 
-from __future__ import annotations
-
 import time
 from dataclasses import dataclass, field, replace
 
@@ -21,7 +19,6 @@ from mog_drake.geometry import GripperGeometry, objects_at_grasp, objects_in_rea
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import ease as _smooth
 from mog_drake.geometry.push import near_path, push_duration
-from mog_drake.planning.clock import INTERRUPT_PERIOD, WorkCost, charge, interrupt, tally
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.sim.models import (
     ContactConfig,
@@ -36,10 +33,11 @@ from mog_drake.sim.models import (
 
 @dataclass
 class VerifierConfig:
-    """Everything the physics check depends on. Defaults are the project's reference setting."""
+    """The physics check's own settings (the jaws' geometry and dynamics are the station's:
+    `DrakeVerifier`). The defaults are the check of the paper's row experiments; the picking
+    scenario's check is `Scenario.verifier`."""
 
     contact: ContactConfig = field(default_factory=ContactConfig)
-    physics: GripperPhysics = field(default_factory=GripperPhysics)
     settle_time: float = 0.05  # s, objects settle on the table before the jaws move
     squeeze_time: float = 0.15  # s, jaws keep pushing after the closing ramp
     lift_height: float = 0.15  # m
@@ -80,15 +78,42 @@ class VerifierConfig:
     # it drops at 1.1 s; held across: 0.4-0.6 mm/s, with one-sample spikes up to 1.2 mm/s.
     settle_window: float = 0.0  # s
     settle_speed: float = 0.001  # m/s
+    # Ends the hold once no lifted object's origin has moved more than hold_drift over the
+    # last hold_window (0: off). A grip that will fail lets its object creep, and faster and
+    # faster; a held one moves with the jaws (still, in the hold) but for the compliant
+    # contact's few tenths of a mm/s, however its velocity chatters from step to step.
+    hold_window: float = 0.0  # s
+    hold_drift: float = 0.00006  # m
+
+    def check(self, where: str = "verifier") -> None:
+        """Refuses, at load, a setting the check cannot run with (the key named)."""
+        if not 0 < self.hold_time <= 30:
+            raise MogError(f"{where}.hold_time must be in (0, 30] s, got {self.hold_time}")
+        for key in ("settle_window", "hold_window"):
+            if not 0 <= getattr(self, key) <= self.hold_time:
+                raise MogError(
+                    f"{where}.{key} must be in [0, hold_time = {self.hold_time:g}] s, got {getattr(self, key)}"
+                )
+        if self.bodies not in ("group", "grasp"):
+            raise MogError(f"{where}.bodies must be one of group, grasp, got {self.bodies!r}")
+        for key, hi in (("cpu_budget", 600), ("hold_drift", 0.05), ("lift_height", 0.5), ("lift_speed", 2.0)):
+            if not 0 < getattr(self, key) <= hi:
+                raise MogError(f"{where}.{key} must be in (0, {hi:g}], got {getattr(self, key)}")
+        for key in ("settle_time", "squeeze_time", "grasp_margin", "reach_margin"):
+            if not 0 <= getattr(self, key) <= 10:
+                raise MogError(f"{where}.{key} must be in [0, 10], got {getattr(self, key)}")
+        if not 0 < self.lifted_fraction < 1:
+            raise MogError(f"{where}.lifted_fraction must be in (0, 1), got {self.lifted_fraction}")
 
     @property
     def lifted_height(self) -> float:
         """Height (m) above which an object counts as lifted."""
         return self.lifted_fraction * self.lift_height
 
-    def timeline(self, gripper: GripperGeometry) -> dict[str, float]:
+    def timeline(self, gripper: GripperGeometry, physics: GripperPhysics) -> dict[str, float]:
+        """When each phase of the check starts and ends (s)."""
         t_close0 = self.settle_time
-        t_close1 = t_close0 + (gripper.opening - gripper.plate_thickness) / 2 / self.physics.close_speed
+        t_close1 = t_close0 + (gripper.opening - gripper.plate_thickness) / 2 / physics.close_speed
         t_lift0 = t_close1 + self.squeeze_time
         t_lift1 = t_lift0 + self.lift_height / self.lift_speed
         return {
@@ -104,12 +129,13 @@ class GraspScript(LeafSystem):
     """Desired gantry and finger states over time for one grasp u = (x, y, theta) (a numeric
     parameter): hold open at u, close the jaws at constant speed, squeeze, lift, hold."""
 
-    def __init__(self, gripper: GripperGeometry, config: VerifierConfig):
+    def __init__(self, gripper: GripperGeometry, config: VerifierConfig, physics: GripperPhysics):
         super().__init__()
         self._g = gripper
         self._cfg = config
-        self._tl = config.timeline(gripper)
-        self._z0 = config.physics.finger_height + config.physics.finger_clearance
+        self._v = physics.close_speed
+        self._tl = config.timeline(gripper, physics)
+        self._z0 = physics.finger_height + physics.finger_clearance
         self._grasp_index = self.DeclareNumericParameter(BasicVector(np.zeros(3)))
         self.DeclareVectorOutputPort("desired_state", 12, self._calc)
 
@@ -125,7 +151,7 @@ class GraspScript(LeafSystem):
         x, y, th = context.get_numeric_parameter(self._grasp_index).value()
         tl, g = self._tl, self._g
         half_open, half_closed = g.opening / 2, g.plate_thickness / 2
-        v = self._cfg.physics.close_speed
+        v = self._v
         if t < tl["close0"]:
             f, fd = half_open, 0.0
         elif t < tl["close1"]:
@@ -144,10 +170,10 @@ class PushScript(LeafSystem):
     numeric parameter): the closed jaws at grasp height move from the push's start to its
     end along a cubic ease over ``duration``, then stay."""
 
-    def __init__(self, gripper: GripperGeometry, config: VerifierConfig):
+    def __init__(self, gripper: GripperGeometry, config: VerifierConfig, physics: GripperPhysics):
         super().__init__()
         self._g = gripper
-        self._z0 = config.physics.finger_height + config.physics.finger_clearance
+        self._z0 = physics.finger_height + physics.finger_clearance
         # x0, y0, x1, y1, yaw, duration
         self._index = self.DeclareNumericParameter(BasicVector(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])))
         self.DeclareVectorOutputPort("desired_state", 12, self._calc)
@@ -187,15 +213,8 @@ class PushResult:
 class _GroupSim:
     """A built diagram for one (scene, group): plant, script, simulator, default context."""
 
-    def __init__(
-        self,
-        scene,
-        ids: list[int],
-        gripper: GripperGeometry,
-        config: VerifierConfig,
-        meshcat=None,
-        script_type=None,
-    ):
+    def __init__(self, scene, ids: list[int], verifier: "DrakeVerifier", script_type=None):
+        gripper, config, physics = verifier.gripper, verifier.config, verifier.physics
         t0 = time.perf_counter()
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlant(config.contact.plant, builder)
@@ -204,7 +223,7 @@ class _GroupSim:
         self.bodies = {}
         for i in ids:
             self.bodies[i] = add_prism(plant, scene.shape(i), f"object_{i}", config.contact)
-        self.gripper = add_gantry_gripper(plant, gripper, config.physics, config.contact)
+        self.gripper = add_gantry_gripper(plant, gripper, physics, config.contact)
         plant.Finalize()
         filter_gripper_self_collisions(
             plant,
@@ -214,11 +233,11 @@ class _GroupSim:
                 for n in ("carriage_x", "carriage_y", "carriage_z", "palm", "left_finger", "right_finger")
             ],
         )
-        self.script = builder.AddSystem((script_type or GraspScript)(gripper, config))
+        self.script = builder.AddSystem((script_type or GraspScript)(gripper, config, physics))
         builder.Connect(
             self.script.get_output_port(), plant.get_desired_state_input_port(self.gripper.instance)
         )
-        self.meshcat = meshcat
+        self.meshcat = meshcat = verifier.meshcat
         if meshcat is not None:
             from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
@@ -239,28 +258,26 @@ class _GroupSim:
 
 
 class DrakeVerifier:
-    """The physics grasp check (implements the `Verifier` protocol).
+    """The physics grasp check (implements the `Verifier` protocol): ``config`` the check's
+    own settings, ``gripper`` the jaws' geometry and ``physics`` their dynamics (the station's
+    own, so the check and the station cannot drift apart).
 
     ``check(scene, group, grasp)`` returns a `GraspResult`. Faults are results: a solver
     failure, a non-finite state, an object leaving the table or a run past the CPU budget
     (of the calling thread) gives success=False with an error saying what happened.
-
-    ``cost`` (`mog_drake.planning.clock.WorkCost`, for ``latency.mode: modelled``): each
-    simulation, a check's or a push's, charges its modelled cost to the calling thread's
-    modelled clock as it ends.
     """
 
     def __init__(
         self,
         config: VerifierConfig | None = None,
         gripper: GripperGeometry | None = None,
+        physics: GripperPhysics | None = None,
         meshcat=None,
-        cost: WorkCost | None = None,
     ):
         self.config = config or VerifierConfig()
         self.gripper = gripper or GripperGeometry()
+        self.physics = physics or GripperPhysics()
         self.meshcat = meshcat
-        self.cost = cost
         if self.config.bodies not in ("group", "grasp"):
             raise MogError(f"verifier bodies must be 'group' or 'grasp', got {self.config.bodies!r}")
         self._sims: dict = {}  # key -> _GroupSim, least recently used first
@@ -281,7 +298,7 @@ class DrakeVerifier:
         if key in self._sims:
             self._sim = self._sims[key] = self._sims.pop(key)  # most recently used last
             return self._sim, False
-        self._sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat)
+        self._sim = _GroupSim(scene, ids, self)
         self._sims[key] = self._sim
         while len(self._sims) > self.SIMS_KEPT:
             self._sims.pop(next(iter(self._sims)))
@@ -306,7 +323,7 @@ class DrakeVerifier:
         reach = push.length + polys.radii[push.target] * 2
         near = near_path(polys, push.start, push.direction, reach, self.PUSH_REACH)
         ids = sorted(set(near.tolist()) | {push.target})
-        sim = _GroupSim(scene, ids, self.gripper, self.config, self.meshcat, PushScript)
+        sim = _GroupSim(scene, ids, self, PushScript)
         plant, pc = sim.plant, sim.plant_context
         duration = push_duration(push, speed)
         sim.script.set_push(sim.script_context, push, duration)
@@ -333,7 +350,6 @@ class DrakeVerifier:
             return PushResult(error=f"simulation failed: {msg}", wall_time=time.perf_counter() - t0)
         finally:
             sim.simulator.clear_monitor()
-            self._charge(sim.context.get_time(), len(ids))
         objects, moved, errors = list(scene.objects), {}, []
         x0, x1, y0, y1 = scene.table
         for i, body in sim.bodies.items():
@@ -376,48 +392,33 @@ class DrakeVerifier:
                 complete=False,
             )
         sim, built = self._sim_for(scene, group, grasp)
-        try:
-            result = self._run(sim, group, grasp, t0)
-        finally:
-            tally().under_way = 0.0  # before the charge: the thread's time never runs ahead
+        result = self._run(sim, group, grasp, t0)
         result.built, result.bodies = built, len(sim.bodies)
-        self._charge(result.sim_time, len(sim.bodies))
         return result
-
-    def _charge(self, sim_time: float, bodies: int) -> None:
-        """Charges a simulation's modelled cost to the calling thread (with a ``cost``)."""
-        if self.cost is not None:
-            charge(self.cost.of(sim_time, bodies))
 
     def _run(self, sim: _GroupSim, group, grasp, t0: float) -> GraspResult:
         cfg, plant, pc = self.config, sim.plant, sim.plant_context
         sim.context.SetTimeStateAndParametersFrom(sim.default_context)
+        g = self.gripper
+        half = g.opening / 2  # the jaws start open
         sim.script.set_grasp(sim.script_context, grasp)
         for i, body in sim.bodies.items():
             plant.SetFloatingBaseBodyPoseInWorldFrame(pc, body, pose_to_transform(*sim.poses[i]))
         j = sim.gripper.joints
         z0 = sim.script.z_grasp
-        g = self.gripper
-        for joint, q in zip(
-            (j[0], j[1], j[2], j[4], j[5]), (grasp[0], grasp[1], z0, -g.opening / 2, g.opening / 2)
-        ):
+        for joint, q in zip((j[0], j[1], j[2], j[4], j[5]), (grasp[0], grasp[1], z0, -half, half)):
             joint.set_translation(pc, q)
         j[3].set_angle(pc, grasp[2])  # yaw
-        timeline = cfg.timeline(g)
+        timeline = cfg.timeline(g, self.physics)
         t_end = timeline["end"]
         cpu_deadline = time.thread_time() + cfg.cpu_budget
-        status = {"error": "", "early": "", "interrupted": ""}
+        status = {"error": "", "early": ""}
         group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
         z_joint = j[2]
-        finger_h = cfg.physics.finger_height
+        finger_h = self.physics.finger_height
         settle = {"samples": [], "next": timeline["lift1"]}
         watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
         lifted_z = cfg.lifted_height
-        # The caller's stop (`mog_drake.planning.clock.interruptible`), asked every
-        # INTERRUPT_PERIOD of simulated time; on the modelled clock, with the thread's time
-        # moved on by what this simulation has cost so far.
-        stop, asked = interrupt(), {"next": INTERRUPT_PERIOD}
-        n_bodies = len(sim.bodies)
 
         def settled(ctx, t) -> bool:
             """Whether, over the last settle_window of the hold, the fastest lifted object's
@@ -439,8 +440,28 @@ class DrakeVerifier:
                 s.pop(0)
             return t - s[0][0] >= cfg.settle_window - 1e-9 and np.mean([v for _, v in s]) < cfg.settle_speed
 
+        still = {"samples": [], "next": timeline["lift1"]}
+
+        def held_still(ctx, t) -> bool:
+            """Whether, over the last hold_window of the hold, no object above the lifted
+            height moved more than hold_drift (sampled every SETTLE_PERIOD)."""
+            p = np.array([plant.EvalBodyPoseInWorld(ctx, body).translation() for body, _ in watched])
+            s = still["samples"]
+            s.append((t, p))
+            while len(s) > 1 and t - s[1][0] >= cfg.hold_window - 1e-9:
+                s.pop(0)
+            if t - s[0][0] < cfg.hold_window - 1e-9:
+                return False
+            up = p[:, 2] > lifted_z
+            return bool(np.all(np.linalg.norm(p - s[0][1], axis=1)[up] < cfg.hold_drift))
+
+        look = {"next": 0.0}
+
         def monitor(root_context):
             t = root_context.get_time()
+            if t < look["next"] - 1e-9:  # Python looks at the state every SETTLE_PERIOD
+                return EventStatus.Succeeded()
+            look["next"] = t + self.SETTLE_PERIOD
             ctx = plant.GetMyContextFromRoot(root_context)
             q = plant.GetPositions(ctx)
             if not np.all(np.isfinite(q)):
@@ -449,6 +470,8 @@ class DrakeVerifier:
             if time.thread_time() > cpu_deadline:
                 status["error"] = f"CPU budget of {cfg.cpu_budget:g} s exceeded at t = {t:.3f} s"
                 return EventStatus.Failed(None, status["error"])
+            if cfg.hold_window > 0 and t >= still["next"] - 1e-9 and held_still(ctx, t):
+                return EventStatus.ReachedTermination(None, "every lifted object held still in the hold")
             if cfg.early_exit and t > timeline["lift0"]:
                 finger_bottom = z_joint.get_translation(ctx) - finger_h
                 left = [
@@ -462,13 +485,6 @@ class DrakeVerifier:
                     return EventStatus.ReachedTermination(None, status["early"])
             if cfg.settle_window > 0 and settled(ctx, t):
                 return EventStatus.ReachedTermination(None, "every object settled in the hold")
-            if stop is not None and t >= asked["next"] - 1e-9:
-                asked["next"] = t + INTERRUPT_PERIOD
-                if self.cost is not None:
-                    tally().under_way = self.cost.of(t, n_bodies)
-                if stop():
-                    status["interrupted"] = f"interrupted at t = {t:.3f} s: its caller stopped"
-                    return EventStatus.ReachedTermination(None, status["interrupted"])
             return EventStatus.Succeeded()
 
         sim.simulator.set_monitor(monitor)
@@ -494,15 +510,6 @@ class DrakeVerifier:
             if sim.meshcat is not None:
                 sim.meshcat.StopRecording()
                 sim.meshcat.PublishRecording()
-        if status["interrupted"]:
-            return GraspResult(
-                False,
-                sim_time=sim.context.get_time(),
-                wall_time=time.perf_counter() - t0,
-                error=status["interrupted"],
-                complete=False,
-                interrupted=True,
-            )
         return self._verdict(sim, group, t0, status["early"])
 
     def _verdict(self, sim: _GroupSim, group, t0: float, early: str = "") -> GraspResult:

@@ -208,10 +208,8 @@ class ControllerSystem(LeafSystem):
                                 "remembered": dec.remembered,
                                 "lookahead": d.lookahead,
                                 # Simulated time it waited for the verdicts of the lookahead
-                                # or its assistant (their board), and the verdicts it took.
+                                # (its board), and the verdicts it took.
                                 "waited": dec.waited,
-                                "assisted": d.assisted,
-                                "helped": d.helped,  # groups its lookahead's assistant planned
                                 "from_board": dec.from_board,
                                 **({"unrecognised": True} if dec.unrecognised else {}),
                             }
@@ -319,8 +317,6 @@ class ControllerSystem(LeafSystem):
                 "remembered_pushes": dec.remembered_pushes,
                 "lookahead": d.lookahead,
                 "waited": dec.waited,
-                "assisted": d.assisted,
-                "helped": d.helped,
                 "from_board": dec.from_board,
             }
         )

@@ -16,55 +16,47 @@ Diagram's thread waits at most about that long for it.
 Simulated time (`LatencyConfig`): a result requested at simulated time t becomes visible at
 t + latency, the latency being the job's measured wall time (``measured``) or a fixed time
 per stage (``fixed``), for runs comparable across machines, or the CPU time of the job's
-thread (``cpu``), or its modelled time (``modelled``: planning's physics costed by a model,
-perception a fixed time; `mog_drake.planning.clock`), for runs that are the same under any
-load. ``cpu`` is what the job would take on a core of its own, as on a cell where
+thread (``cpu``). ``cpu`` is what the job would take on a core of its own, as on a cell where
 the arm is real: in simulation, the simulator's own physics and other runs on the machine
 compete with the job for cores and stretch its wall time, but not its CPU time. (Drake's
 physics and numpy here are single-threaded, so the thread's CPU time is the job's.) In a simulation that runs faster
 than the wall clock, a collecting event waits (on the wall clock) for a job still running
 until the job has run as long as simulated time has advanced since the request: then either
 the job is done, and its result is visible if its latency has passed, or it is not, and its
-latency is longer than the simulated time so far (a modelled clock moves when a check
-ends). Visibility is exact to one update period whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
+latency is longer than the simulated time so far. Visibility is exact to one update period whatever the simulation's speed. On hardware (``block`` False) nothing waits: a result is
 visible at the first update after it is ready and its latency has passed.
 """
 
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from mog_drake.planning.clock import WorkCost, thread_clock
+from mog_drake.planning.board import thread_clock
 
-LATENCY_MODES = ("measured", "cpu", "fixed", "modelled")
+LATENCY_MODES = ("measured", "cpu", "fixed")
 
 
 @dataclass
 class LatencyConfig:
     """How long perception and planning take in simulated time: ``measured`` (each job's own
-    wall time), ``cpu`` (each job's CPU time), ``fixed`` (``perception_s`` and ``planning_s``
-    for every job) or ``modelled`` (each planning job's physics costed by ``cost``, every
-    perception job ``perception_s``)."""
+    wall time), ``cpu`` (each job's CPU time) or ``fixed`` (``perception_s`` and
+    ``planning_s`` for every job)."""
 
     mode: str = "measured"
     perception_s: float = 0.3
     planning_s: float = 2.0
-    # The modelled cost of the planner's physics on this project's 2-core machine, alone
-    # (fitted by `mog-drake bench checks`).
-    cost: WorkCost = field(default_factory=WorkCost)
 
     def of(self, stage: str) -> float | None:
         """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
-        if self.mode == "fixed" or (self.mode == "modelled" and stage == "perception"):
+        if self.mode == "fixed":
             return getattr(self, f"{stage}_s")
         return None
 
     @property
     def clock(self) -> str:
-        """What a measured latency is: "cpu" (the job thread's CPU time), "modelled" (its
-        modelled time) or "wall"."""
-        return self.mode if self.mode in ("cpu", "modelled") else "wall"
+        """What a measured latency is: "cpu" (the job thread's CPU time) or "wall"."""
+        return "cpu" if self.mode == "cpu" else "wall"
 
 
 class Job:
@@ -93,7 +85,7 @@ class Job:
 
     def elapsed(self) -> float:
         """Time the job has run so far on its clock (s): wall time since it was submitted, or
-        its thread's CPU or modelled time since it started, plus how late it started
+        its thread's CPU time since it started, plus how late it started
         (`Worker.submit`'s ``delay``)."""
         if self.clock == "wall":
             return time.perf_counter() - self.t_submit
@@ -130,8 +122,7 @@ class Job:
             except FutureTimeout:
                 if self.clock == "wall":
                     return False
-                # CPU time runs slower than the wall clock when the job shares a core, and
-                # modelled time moves when a check ends: look again.
+                # CPU time runs slower than the wall clock when the job shares a core: look again.
         return self.latency() <= waited + 1e-9
 
     def wall_time(self) -> float:
@@ -176,7 +167,7 @@ class Worker:
         waited for the lookahead's verdicts: `mog_drake.planning.board`), added to its
         latency. ``delay()``, called on the thread as the job starts: the simulated time it
         starts after its request because the thread was busy until then on the CPU clock (the
-        decision's assistant ran on: `mog_drake.planning.picking.assist`), added to its
+        lookahead before it ran on: `mog_drake.planning.board.Board`'s ``after``), added to its
         latency too (the wall clock counts queueing already)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)

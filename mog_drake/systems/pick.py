@@ -12,7 +12,6 @@ from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.errors import HardwareFault, stop_on_signals
 from mog_drake.geometry.gripper import OPEN_WIDTH
-from mog_drake.planning.clock import caller_clock
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, camera_pose
 from mog_drake.station import MakeStation
@@ -25,35 +24,19 @@ from mog_drake.systems.view import ArmView
 
 
 def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
-    """The grasp planner of ``scenario.planner``, its physics check on the scenario's contact
-    and gripper settings (``verifier`` replaces that check, e.g. in tests), its jaws kept
+    """The grasp planner of ``scenario.planner``, its physics check ``scenario.verifier`` with
+    the station's own jaws (``verifier`` replaces that check, e.g. in tests), its jaws kept
     out of the bin (`Scenario.keep_out`)."""
-    from mog_drake.geometry import GripperGeometry
-    from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+    from mog_drake.sim.verifier import DrakeVerifier
 
     spec = scenario.planner
-    # With partial lifts, a check that holds two or more of the group runs to the end to say
-    # so; one lifted object is not worth the hold (a lone object's own check is as cheap).
-    vcfg = VerifierConfig(
-        contact=scenario.planner_contact,
-        physics=scenario.gripper,
-        report_partial_lifts=2 if spec.partial_lifts else 0,
-        hold_time=spec.hold_s,
-        settle_window=spec.settle_window_s,
-        bodies=spec.check_bodies,
-    )
-    # The CPU budget was set for the default hold: a longer hold gets a proportional budget.
-    default, jaws = VerifierConfig(), GripperGeometry()
-    vcfg.cpu_budget = default.cpu_budget * max(
-        1.0, vcfg.timeline(jaws)["end"] / default.timeline(jaws)["end"]
-    )
-    # Under latency.mode modelled its physics charges its modelled cost to the planning thread.
-    lat = scenario.latency
-    cost = lat.cost if lat.mode == "modelled" else None
     planner = GraspPlanner(
-        verifier or DrakeVerifier(vcfg, cost=cost), spec.grasp_planner(), keep_out=scenario.keep_out()
+        verifier or DrakeVerifier(scenario.verifier, physics=scenario.gripper),
+        spec.grasp_planner(),
+        keep_out=scenario.keep_out(),
     )
-    planner.clock = caller_clock(lat.clock if lat.clock != "wall" else "cpu")  # decision_budget_s
+    # decision_budget_s is counted on the planning thread's clock (its CPU time, or the wall's).
+    planner.clock = time.thread_time if scenario.latency.clock == "cpu" else time.perf_counter
     return planner
 
 

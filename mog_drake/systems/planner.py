@@ -11,17 +11,9 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from mog_drake.planning.board import Board, BoardReader, Horizon
+from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import (
-    PickDecision,
-    assist,
-    lookahead,
-    next_pick,
-    tally_misses,
-    without_grasped,
-)
-from mog_drake.planning.planner import draws_at_random
+from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
 from mog_drake.systems.jobs import LatencyConfig, Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -48,9 +40,17 @@ class Decision(_Immutable):
     # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
     # in while the plan ran: merge_lookahead), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
-    assisted: bool = False  # half its groups were planned on the lookahead's core (assist)
-    # Groups its lookahead's assistant planned on the planner's core (assist_lookahead).
-    helped: int = 0
+
+
+@dataclass(frozen=True)
+class _Request:
+    """What a planning job was asked with, for the Decision it becomes."""
+
+    base: Decision  # the state it was planned from
+    objects: int  # objects seen in its image
+    scene: object  # the perceived scene
+    misses: tuple  # failed grasps per object as of its image
+    lookahead: str  # as Decision.lookahead; "late" while its board is read
 
 
 class PlannerSystem(LeafSystem):
@@ -59,7 +59,11 @@ class PlannerSystem(LeafSystem):
     thread whose decision becomes visible after its latency (`mog_drake.systems.jobs`). The
     random draws come from a Generator seeded with ``spec.seed`` that lives in the Context's
     state. A retaken scene (the table changed before the last decision was used) is planned
-    from the state before that decision, which was never executed."""
+    from the state before that decision, which was never executed.
+
+    With ``ahead_planner`` (its own physics check: a built plant is one thread's) and
+    ``spec.lookahead``, once a grasp is decided the next decision is planned on a second
+    thread while the arm moves (`mog_drake.planning.picking.lookahead`)."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
     # Grasps of unrecognised blobs in a row before the run ends on them: each failed one moves
@@ -77,7 +81,6 @@ class PlannerSystem(LeafSystem):
     ):
         super().__init__()
         self._planner = planner
-        # The lookahead's own planner (its physics check keeps a built plant: one per thread).
         self._ahead_planner = ahead_planner
         self._spec = spec or PlannerSpec()
         self._spec.check()
@@ -93,31 +96,14 @@ class PlannerSystem(LeafSystem):
             and self._spec.remember_failures
             and self._spec.mode in ("mog", "push-mog")
         )
-        # The decision's assistant on the lookahead's core when that is idle (see
-        # mog_drake.planning.picking.assist): deterministic checks, measured latencies.
-        assistable = (
-            self._lookahead
-            and self._latency is None
-            and not draws_at_random(self._spec.method)
-            and self._spec.decision_budget_s == 0
-        )
-        self._assist = assistable and self._spec.assist
-        # The lookahead's assistant on the planner's core while the arm moves, until the next
-        # image (assist_lookahead): the same terms.
-        self._assist_ahead = assistable and self._spec.assist_lookahead
-        self._horizons: list[Horizon] = []  # each assistant's, closed when the run ends
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        # The last lookahead, its board in its info: the next starts no earlier than it ends.
         self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
-        # The last job sent to the lookahead's thread (a lookahead or an assistant), its
-        # board in its info: a job sent after it starts no earlier than it ends.
         self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
-        # The lookahead's assistant, its (board, Horizon) in its info: the next decision
-        # starts on the planner's thread no earlier than it ends.
-        self._helper = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -127,109 +113,88 @@ class PlannerSystem(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
 
     def shutdown(self) -> None:
-        for h in self._horizons:
-            h.close()  # an assistant waiting for the next image stops
         self._worker.shutdown()
         self._ahead_worker.shutdown()
 
     def _update(self, context, state) -> None:
         t = context.get_time()
-        cur = context.get_abstract_state(self._state).get_value()
         job = context.get_abstract_state(self._job).get_value().job
         if job is not None and job.visible(t, self._latency, self._block):
-            job_counter = job.counter
-            d, rng = job.result()
-            base, n_objects, scene, misses, ahead_use, assisted, helped_by = job.info
-            if ahead_use == "late":
-                ahead_use = "merged" if d.merged else "dropped"
-            recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
-            if d.status == "grasp":
-                blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
-            else:  # a clear table, or given up: the count stands
-                blob_grasps = base.unrecognised_grasps
-            cur = Decision(
-                job.counter,
-                d,
-                n_objects,
-                recent[-self.REMEMBER :],
-                d.failures,
-                blob_grasps,
-                rng,
-                job.t_request,
-                t,
-                job.wall_time(),
-                job.cpu_time(),
-                dataclasses.replace(base, previous=None),  # one step back is all a retake needs
-                base.pushes + (d.status == "push"),
-                _targets(d, scene),
-                misses,
-                ahead_use,
-                assisted,
-                helped_by.result() if helped_by is not None else 0,
-            )
-            state.get_mutable_abstract_state(self._state).set_value(cur)
-            state.get_mutable_abstract_state(self._job).set_value(_Slot())
+            self._collect(job, t, state)
             job = None
-            # After a grasp, the lookahead plans this image without its objects; after a push
-            # whose grasp follows at once, the table the simulated push left without them.
-            chained = d.status == "push" and d.grasp is not None and d.after is not None
-            if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
-                # push-mog: it considers pushes too, with the pushes left after this decision.
-                # It writes on a board as it goes, for the next plan if that starts first.
-                # Its assistant, if any, posts on ``helper``, on the planner's idle core.
-                board = Board(t, self._clock, after=self._thread_board(state))
-                helper = Board(t, self._clock) if self._assist_ahead else None
-                table = d.after if chained else scene
-                ahead = self._ahead_worker.submit(
-                    self._look,
-                    table,
-                    d,
-                    copy.deepcopy(rng),
-                    cur.recent,
-                    self._spec.max_pushes - cur.pushes,
-                    board,
-                    helper,
-                    t_request=t,
-                    counter=job_counter,
-                    info=board,
-                    delay=board.start,
-                )
-                state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
-                state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
-                if helper is not None:
-                    horizon = Horizon()
-                    self._horizons.append(horizon)
-                    aid = self._worker.submit(
-                        self._help,
-                        without_grasped(table, d),
-                        d.failures,
-                        cur.recent,
-                        board,
-                        helper,
-                        horizon,
-                        t_request=t,
-                        counter=job_counter,
-                        info=(helper, horizon),
-                    )
-                    state.get_mutable_abstract_state(self._helper).set_value(_Slot(aid))
         p = self._scene.Eval(context)
+        cur = state.get_mutable_abstract_state(self._state).get_value()
         last = job.counter if job is not None else cur.counter
-        image = not (job is not None or p.scene is None or p.counter <= last)
-        aid = state.get_mutable_abstract_state(self._helper).get_value().job
-        if aid is not None:
-            # Before anything here may wait for a job: the lookahead's assistant stops at the
-            # image, and the decision starts on the planner's thread once it has.
-            aid.info[1].reach(t, image)
-        if not image:
-            return
-        if aid is not None:
-            state.get_mutable_abstract_state(self._helper).set_value(_Slot())
+        if job is None and p.scene is not None and p.counter > last:
+            self._decide(p, cur, t, state)
+
+    def _collect(self, job, t: float, state) -> None:
+        """A decision became visible: it is the state now, and a lookahead starts after a grasp."""
+        d, rng = job.result()
+        req: _Request = job.info
+        used = req.lookahead
+        if used == "late":
+            used = "merged" if d.merged else "dropped"
+        base = req.base
+        recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
+        if d.status == "grasp":
+            blob_grasps = base.unrecognised_grasps + 1 if d.unrecognised else 0
+        else:  # a clear table, or given up: the count stands
+            blob_grasps = base.unrecognised_grasps
+        cur = Decision(
+            counter=job.counter,
+            decision=d,
+            objects_seen=req.objects,
+            recent=recent[-self.REMEMBER :],
+            failures=d.failures,
+            unrecognised_grasps=blob_grasps,
+            rng=rng,
+            t_request=job.t_request,
+            t_visible=t,
+            wall_time=job.wall_time(),
+            cpu_time=job.cpu_time(),
+            previous=dataclasses.replace(base, previous=None),  # one step back is all a retake needs
+            pushes=base.pushes + (d.status == "push"),
+            targets=_targets(d, req.scene),
+            misses=req.misses,
+            lookahead=used,
+        )
+        state.get_mutable_abstract_state(self._state).set_value(cur)
+        state.get_mutable_abstract_state(self._job).set_value(_Slot())
+        # After a grasp, the lookahead plans this image without its objects; after a push
+        # whose grasp follows at once, the table the simulated push left without them.
+        chained = d.status == "push" and d.grasp is not None and d.after is not None
+        if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
+            self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state)
+
+    def _look_ahead(self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, state) -> None:
+        """Starts the lookahead (push-mog: with the pushes left after this decision). It writes
+        on a board as it goes, for the next plan if that starts first."""
+        board = Board(t, self._clock, after=self._thread_board(state))
+        ahead = self._ahead_worker.submit(
+            self._look,
+            table,
+            d,
+            copy.deepcopy(rng),
+            cur.recent,
+            self._spec.max_pushes - cur.pushes,
+            board,
+            t_request=t,
+            counter=counter,
+            info=board,
+            delay=board.start,
+        )
+        state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
+        state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
+
+    def _decide(self, p: Perceived, cur: Decision, t: float, state) -> None:
+        """A new image: its decision starts on the planner's thread."""
         # A retake replaces a decision that was never executed: plan from the state before it.
         base = cur.previous if p.retake and cur.previous is not None else cur
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
-        ahead = context.get_abstract_state(self._ahead).get_value().job
-        late, ahead_use = None, ""
+        ahead = state.get_mutable_abstract_state(self._ahead).get_value().job
+        late, used = None, ""
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
@@ -237,132 +202,58 @@ class PlannerSystem(LeafSystem):
             # verdicts as they become visible, and it waits for those of the groups it is
             # planning (`mog_drake.planning.board`); else it is dropped, and its thread
             # finishes it unused.
-            ahead_use = "dropped"
+            used = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
-                memory, ahead_use = ahead.result(), "used"
+                memory, used = ahead.result(), "used"
             elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
-                late, ahead_use = ahead.info, "late"  # its board
+                late, used = ahead.info, "late"  # its board
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
-        avoid, failures = base.recent, memory if self._spec.remember_failures else None
-        post = None
-        # This plan starts on the planner's thread once the lookahead's assistant ends.
-        after = aid.info[0] if aid is not None else None
-        last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
-        # On the modelled clock the lookahead's core is idle in simulated time whenever there
-        # is no late lookahead (a lookahead in time is done; another job there ended with its
-        # decision), and a job still finishing there on the wall clock only delays the
-        # assistant's start (its ``after``): whether to assist is decided the same on every run.
-        idle = last is None or last.future.done() or self._clock == "modelled"
-        if self._assist and late is None and idle:
-            # The lookahead's core is idle: half the groups are planned there (its board is
-            # this plan's ``late``), and it reads this plan's board (``post``).
-            post = Board(t, self._clock, after=after)
-            helper = Board(t, self._clock, after=self._thread_board(state))
-            helped = self._ahead_worker.submit(
-                self._aid,
-                p.scene,
-                avoid,
-                failures or (),
-                given_up,
-                post,
-                helper,
-                t_request=t,
-                counter=p.counter,
-                info=helper,
-                delay=helper.start,
-            )
-            state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(helped))
-            late = helper
-        start = post if post is not None else Board(t, self._clock, after=after)
         job = self._worker.submit(
             self._plan,
             p.scene,
             rng,
-            avoid,
-            failures,
+            base.recent,
+            memory if self._spec.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.max_pushes - base.pushes,
             given_up,
             late,
-            post,
-            start,
+            t,
             t_request=t,
             counter=p.counter,
-            info=(base, len(p.scene), p.scene, misses, ahead_use, post is not None, aid),
+            info=_Request(base, len(p.scene), p.scene, misses, used),
             waited=lambda out: out[0].waited,
-            delay=start.start,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post, start):
-        # Started already (its delay): its time is its request, or the end of the lookahead's
-        # assistant before it. On the modelled clock its reads are exact (`BoardReader`'s sync).
-        sync = self._clock == "modelled"
-        source = (
-            None if late is None else BoardReader(late, start.t_request, self._clock, sync=sync, own=post)
-        )
-        if post is not None:
-            post.start()  # its stamps count this thread's time from here
-        try:
-            d = next_pick(
-                scene,
-                self._planner,
-                self._spec,
-                rng,
-                avoid=avoid,
-                failures=failures,
-                grasp_unrecognised=grasp_unrecognised,
-                pushes_left=pushes_left,
-                exclude=exclude,
-                late=source,
-                post=post,
-            )
-        finally:
-            if post is not None:
-                post.finish()  # the assistant stops
-        return d, rng
-
-    def _look(self, scene, d, rng, avoid, pushes_left, board, helper):
-        # Started already (its delay). It reads its assistant's board as a decision does.
-        board.start()
-        sync = self._clock == "modelled"
-        late = (
-            None
-            if helper is None
-            else BoardReader(helper, board.t_request, self._clock, sync=sync, own=board)
-        )
-        return lookahead(
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, t):
+        # The late lookahead's board, read on this thread's clock from the request at t.
+        late = None if late is None else BoardReader(late, t, self._clock)
+        d = next_pick(
             scene,
-            d,
-            self._ahead_planner,
+            self._planner,
             self._spec,
             rng,
-            avoid,
+            avoid=avoid,
+            failures=failures,
+            grasp_unrecognised=grasp_unrecognised,
             pushes_left=pushes_left,
-            board=board,
+            exclude=exclude,
             late=late,
         )
+        return d, rng
 
-    def _help(self, scene, failures, avoid, main, board, horizon):
-        # The lookahead's assistant, on the planner's thread; it yields to the lookahead at a
-        # tie in simulated time, so their synced reads never wait for each other.
-        board.start()
-        reader = BoardReader(main, board.t_request, self._clock, sync=self._clock == "modelled", yields=True)
-        return assist(scene, self._planner, self._spec, reader, board, avoid, failures, until=horizon.came)
-
-    def _aid(self, scene, avoid, failures, exclude, main, board):
-        # Started already (its delay): its time is its request, or the end of the job before.
-        # On the modelled clock its reads of the decision's board are exact too, yielding at a
-        # tie (as the lookahead's assistant's): the same on every run, and the two never wait
-        # for each other (the decision's own waits for this board count as its time: ``own``).
-        main = BoardReader(main, board.t_request, self._clock, sync=self._clock == "modelled", yields=True)
-        return assist(scene, self._ahead_planner, self._spec, main, board, avoid, failures, exclude)
+    def _look(self, scene, d, rng, avoid, pushes_left, board):
+        board.start()  # started already (its delay)
+        return lookahead(
+            scene, d, self._ahead_planner, self._spec, rng, avoid, pushes_left=pushes_left, board=board
+        )
 
     def _thread_board(self, state) -> Board | None:
-        """The board of the last job sent to the lookahead's thread, if any (a job of its that
-        raised re-raises here, in the Diagram's thread)."""
+        """The board of the last lookahead, if any (a lookahead that raised re-raises here,
+        in the Diagram's thread)."""
         last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
         if last is None:
             return None

@@ -3,8 +3,7 @@
 `run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
 
 * geometry: the conditions and the candidate filter (`bench.geometry`)
-* verifier, agreement, hold, bodies, table, surface, checks: the physics check
-  (`bench.physics`; checks: its cost on the modelled clock against its CPU time)
+* verifier: the picking check against the reference check, pair by pair (`bench.physics`)
 * perception, station, replanning, rest: rendered tables, the station's step, replanning,
   objects at rest on the station's table (`bench.station`)
 """
@@ -15,20 +14,7 @@ import statistics
 
 from mog_drake.tables import format_table
 
-BENCHES = (
-    "geometry",
-    "verifier",
-    "agreement",
-    "perception",
-    "station",
-    "replanning",
-    "hold",
-    "bodies",
-    "table",
-    "surface",
-    "rest",
-    "checks",
-)
+BENCHES = ("geometry", "verifier", "perception", "station", "replanning", "rest")
 
 
 def run(
@@ -36,10 +22,10 @@ def run(
     scenes: int = 20,
     seed: int = 0,
     toppled: int = 0,
-    candidates: int = 60,
-    window: float = 0.5,
     progress: bool = True,
     budget: float = 0.0,
+    tables: int = 2,
+    out=None,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""
     from mog_drake.progress import Progress
@@ -49,9 +35,12 @@ def run(
 
         rows = bench_geometry(scenes, seed)
     elif what == "verifier":
-        from mog_drake.experiments.bench.physics import bench_verifier
+        from mog_drake.experiments.bench.physics import bench_verifier, verifier_text
 
-        rows = bench_verifier(scenes, seed)
+        bar = Progress(1, what, enabled=progress)
+        doc = bench_verifier(scenes, tables, seed, out, progress=bar)
+        bar.close()
+        return doc, verifier_text(doc)
     elif what == "perception":
         from mog_drake.experiments.bench.station import bench_perception
 
@@ -72,20 +61,6 @@ def run(
         from mog_drake.experiments.bench.station import bench_replanning
 
         rows = bench_replanning(scenes, seed, Progress(2 * scenes, "replanning", enabled=progress), budget)
-    elif what == "agreement":
-        from mog_drake.experiments.bench.physics import agreement_text, bench_agreement
-
-        bar = Progress(candidates, "agreement", enabled=progress)
-        doc = bench_agreement(candidates, seed, progress=bar)
-        bar.close()
-        return doc, agreement_text(doc)
-    elif what == "hold":
-        from mog_drake.experiments.bench.physics import bench_hold, hold_text
-
-        bar = Progress(scenes, "hold", enabled=progress)
-        doc = bench_hold(scenes, seed, window, progress=bar)
-        bar.close()
-        return doc, hold_text(doc)
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
 
@@ -93,20 +68,6 @@ def run(
         doc = bench_rest(scenes, seed, progress=bar)
         bar.close()
         return doc, rest_text(doc)
-    elif what == "checks":
-        from mog_drake.experiments.bench.physics import bench_checks, checks_text
-
-        bar = Progress(scenes, what, enabled=progress)
-        doc = bench_checks(scenes, seed, progress=bar)
-        bar.close()
-        return doc, checks_text(doc)
-    elif what in ("bodies", "table", "surface"):
-        from mog_drake.experiments.bench.physics import bench_pair, pair_text
-
-        bar = Progress(scenes, what, enabled=progress)
-        doc = bench_pair(what, scenes, seed, progress=bar)
-        bar.close()
-        return doc, pair_text(doc)
     else:
         from mog_drake.errors import MogError
 
