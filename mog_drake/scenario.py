@@ -193,7 +193,7 @@ def picking_check() -> VerifierConfig:
         report_partial_lifts=2,
         contact=_contact(0.3, table="halfspace"),
         hold_time=2.5,
-        hold_window=0.2,
+        hold_window=0.1,
         hold_drift=0.00006,
         bodies="grasp",
         cpu_budget=30.0,
@@ -240,6 +240,9 @@ class Scenario:
     # the arm's reach, robot.reach). The camera sees all of it; the table under it is larger.
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.40, 0.40])
     time_limit: float = 600.0  # s of simulated robot time
+    # The simulated station: objects at rest out of reach of the gripper and of anything
+    # moving leave the physics until something could reach them (`station.sleep`).
+    sleep: bool = True
     hardware: HardwareSpec = field(default_factory=HardwareSpec)
 
     def perception_ignore(self) -> list[tuple[float, float, float, float]]:

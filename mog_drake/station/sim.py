@@ -132,6 +132,17 @@ class StationHandles:
         self.bodies = bodies
         self.scene = scene
 
+    def sleep(self, period: float):
+        """Objects at rest out of everything's reach leave the physics (`station.sleep.Sleep`),
+        looked at every ``period`` s."""
+        from mog_drake.station.sleep import Sleep
+
+        gripper = [self.plant.GetBodyByName(n, self.robot) for n in ("palm", "left_finger", "right_finger")]
+        radii = {
+            i: float(np.hypot(self.scene.shape(i).radius, self.scene.shape(i).height)) for i in self.bodies
+        }
+        return Sleep(self.plant, self.scene_graph, self.bodies, gripper, radii, period=period)
+
 
 # Drake's VTK renderer draws pixel (u, v) from the ray through (u + 0.5, v + 0.5) of its
 # CameraInfo model, which puts pixel centres at integer coordinates: rendered tables perceived

@@ -292,6 +292,9 @@ def run_pick(
             parts["planner"].shutdown()
 
 
+SLEEP_PERIOD = 0.05  # s of simulated time between two looks at which objects may sleep
+
+
 def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
     handles = parts["handles"]
     controller = parts["controller"]
@@ -308,6 +311,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     run = PickRun(objects=len(handles.scene) if handles.scene is not None else 0)
     retire = BinRetirement(handles.plant, handles.bodies, scenario) if scored and retire_binned else None
     gone = retire.retired if retire else ()
+    # Resting objects out of reach sleep (looked at every SLEEP_PERIOD s of simulated time).
+    sleep = handles.sleep(SLEEP_PERIOD) if scored and scenario.sleep else None
+    step = SLEEP_PERIOD if sleep else 0.25
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()
@@ -316,11 +322,13 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
         if pacer is not None:
-            pacer.advance_to(ctx.get_time() + 0.25)
+            pacer.advance_to(ctx.get_time() + step)
         else:
-            sim.AdvanceTo(ctx.get_time() + 0.25)
+            sim.AdvanceTo(ctx.get_time() + step)
         if retire:
             retire.update(plant_ctx)
+        if sleep:
+            sleep.update(ctx, skip=gone)
         s = controller.state(ctrl_ctx)
         if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
             old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone))

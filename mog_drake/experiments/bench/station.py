@@ -75,35 +75,49 @@ def bench_perception(
 
 def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     """CPU seconds per simulated second of the simulated station (arm still at its observe
-    pose, jaws open) with a whole isrr33 table in three states: every object on the table;
-    every object piled in the bin; and the pile retired (`BinRetirement`)."""
+    pose, jaws open) with a whole isrr33 table in four states: every object on the table,
+    awake; the same asleep (`station.sleep`: each at rest, out of the gripper's reach); every
+    object piled in the bin; and the pile retired (`BinRetirement`)."""
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
 
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station import still_station
     from mog_drake.station.scoring import BinRetirement
+    from mog_drake.systems.pick import SLEEP_PERIOD
 
     sc = Scenario(scene=ClutteredScene(seed=seed))
     sim, h, pc = still_station(sc)
-    ctx = sim.get_context()
+    ctx = sim.get_mutable_context()
     sim.Initialize()
     sim.AdvanceTo(0.3)
+    retire = sleep = None
 
-    def cost(**extra) -> dict:
-        t0, s0 = time.process_time(), ctx.get_time()
-        while ctx.get_time() < s0 + sim_seconds - 1e-9:
-            sim.AdvanceTo(min(ctx.get_time() + 0.25, s0 + sim_seconds))
+    def advance(seconds: float) -> None:
+        end = ctx.get_time() + seconds
+        while ctx.get_time() < end - 1e-9:
+            sim.AdvanceTo(min(ctx.get_time() + (SLEEP_PERIOD if sleep else 0.25), end))
             if retire is not None:
                 retire.update(pc)
+            if sleep is not None:
+                sleep.update(ctx)
+
+    def cost(**extra) -> dict:
+        t0 = time.process_time()
+        advance(sim_seconds)
         return {
             **extra,
             "objects": len(h.bodies),
+            "asleep": len(sleep.asleep) if sleep else 0,
             "cpu_s_per_sim_s": (time.process_time() - t0) / sim_seconds,
         }
 
-    retire = None
     rows = [cost(state="on the table")]
+    sleep = h.sleep(SLEEP_PERIOD)
+    advance(0.5)  # at rest long enough: asleep
+    rows.append(cost(state="on the table, asleep"))
+    sleep.wake(ctx)
+    sleep = None
     rng = np.random.default_rng(seed)
     cx, cy = sc.bin.center
     for k, body in enumerate(h.bodies.values()):  # dropped in, one above the other
