@@ -100,8 +100,14 @@ class Sleep:
                 self._rest_since.pop(i, None)
                 self.woken += 1
         everything = None
+        # One object on the table always stays awake: with every body of the plant exactly at
+        # rest and out of contact (the arm idle at its observe pose, the rest asleep or
+        # retired), Drake 1.51's discrete solver fails to converge ("SAP solver failed").
+        awake = [
+            i for k, i in enumerate(ids) if i not in self.asleep and i not in skip and abs(p[k][2]) < 0.05
+        ]
         for k, i in enumerate(ids):
-            if i in self.asleep or i in skip:
+            if i in self.asleep or i in skip or len(awake) <= 1:
                 continue
             at_rest = v[k] < self.rest_speed and w[k] < self.rest_turn and abs(p[k][2]) < self.table_height
             if not at_rest:
@@ -115,6 +121,7 @@ class Sleep:
             self.asleep[i] = mgr.ApplyTransient(
                 CollisionFilterDeclaration().ExcludeBetween(self._geometry[i], everything)
             )
+            awake.remove(i)
             plant.SetFreeBodySpatialVelocity(pc, self.bodies[i], SpatialVelocity.Zero())
         if set(self.asleep) != before:
             self._carry(pc)
