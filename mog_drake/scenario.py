@@ -29,7 +29,7 @@ from pydrake.visualization import VisualizationConfig
 from mog_drake.errors import MogError
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.scenes.library import read_text
+from mog_drake.scenes.library import check_yaml, read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.sim.verifier import VerifierConfig
 from mog_drake.systems.controller import ControllerConfig
@@ -311,6 +311,7 @@ def load_scenario(path: str | None = None) -> Scenario:
 
 def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
     """A scenario from YAML text (a file's contents), checked like ``load_scenario``."""
+    check_yaml(text, where)
     try:
         sc = yaml_load_typed(schema=Scenario, data=text, defaults=Scenario())
     except Exception as e:  # Drake's loader raises RuntimeError, TypeError, ValueError, yaml's own

@@ -481,3 +481,35 @@ def test_a_write_cut_short_leaves_the_earlier_file_whole(tmp_path):
             raise KeyboardInterrupt  # a signal in the middle of the write
     assert path.read_text() == "<html>earlier</html>"
     assert [p.name for p in tmp_path.iterdir()] == ["replay.html"]  # no temporary left behind
+
+
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        (
+            "a: &a [1, 1]\n"
+            + "".join(
+                f"a{k}: &a{k} [*a{'' if k == 0 else k - 1}, *a{'' if k == 0 else k - 1}]\n" for k in range(60)
+            ),
+            "YAML aliases",
+        ),
+        ("x: " + "[" * 200 + "]" * 200 + "\n", "nested more than"),
+    ],
+)
+def test_yaml_that_would_expand_past_memory_or_recursion_is_refused_unread(tmp_path, capsys, text, expected):
+    """An alias bomb (each level doubles: 2**60 copies) and 200 nested lists: one line, exit 2,
+    from a scan of the tokens (nothing is expanded), as a scenario and as a scene."""
+    f = tmp_path / "bomb.yaml"
+    f.write_text(text)
+    for argv in (["pick", "--scenario", str(f)], ["candidates", str(f)]):
+        code, _, err = run(capsys, *argv)
+        assert code == 2 and expected in err and err.count("\n") == 1, err
+
+
+def test_devices_and_fifos_are_refused_as_files(tmp_path, capsys):
+    """/dev/zero never ends and a FIFO blocks a reader forever: neither is read."""
+    fifo = tmp_path / "scene.fifo"
+    os.mkfifo(fifo)
+    for path in ("/dev/zero", str(fifo)):
+        code, _, err = run(capsys, "candidates", path)
+        assert code == 2 and "not a regular file" in err and err.count("\n") == 1, err

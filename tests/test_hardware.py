@@ -305,6 +305,31 @@ def test_gripper_driver_latches_gripper_faults(mode, expected):
     assert faults.reason.startswith(expected), faults.reason
 
 
+def test_a_gripper_that_never_ends_a_move_faults_however_often_it_is_commanded():
+    """The URCap's fake in "stuck" mode takes every command (PRE) but never ends a move (OBJ
+    stays 0). Commands every 0.1 s, each to a new width, must not restart the deadline: the
+    fault comes once the first move has run past move_timeout (0.3 s), not never."""
+    faults = FaultLatch()
+    with (
+        FakeRobotiq("stuck", active=True) as srv,
+        RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client,
+    ):
+        g = RobotiqDriver(client, faults, force=40.0, period=0.05, move_timeout=0.3)
+        gctx = g.CreateDefaultContext()
+        sim = Simulator(g, gctx)
+        sim.set_target_realtime_rate(1.0)  # the move timeout is wall-clock time
+        sent = []
+        with pytest.raises(RuntimeError, match="gripper: "):
+            for k in range(40):
+                g.GetInputPort("gripper.position").FixValue(gctx, [0.07 - 0.001 * k])
+                sent.append(k)
+                sim.AdvanceTo(0.1 * (k + 1))
+    assert faults.reason.startswith("gripper: still moving 0.3 s after the command"), faults.reason
+    # One deadline, not one per command: the fault came with the first move's, within a
+    # few commands (a pacing simulator only ever lags the wall clock, so never more).
+    assert len(sent) <= 8, len(sent)
+
+
 def test_station_refuses_to_start_without_a_robot_address():
     sc = Scenario(hardware=HardwareSpec(enabled=True, camera=ReplaySource(dir="."), max_joint_speed=3.5))
     with pytest.raises(MogError, match="explicit robot address"):

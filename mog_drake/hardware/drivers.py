@@ -388,8 +388,10 @@ class RobotiqDriver(LeafSystem):
 
     A changed width is sent as one move (`RobotiqClient.command`, which reads FLT first); each
     poll reads POS, OBJ, FLT and PRE. A fault code, a command the gripper did not take (PRE)
-    or a move that does not end within ``move_timeout`` latches a fault. After any fault the
-    jaws never open again: whatever is held stays held.
+    or a move that does not end within ``move_timeout`` latches a fault. The deadline is the
+    move's, not the command's: a new command sent before the move before it ended keeps that
+    move's deadline, so a gripper that never ends a move faults however often it is told to
+    move. After any fault the jaws never open again: whatever is held stays held.
     """
 
     def __init__(
@@ -412,6 +414,7 @@ class RobotiqDriver(LeafSystem):
         self._move_timeout, self._clock = move_timeout, clock
         self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
         self._state = self.DeclareDiscreteState(np.array([initial_width, 0.0]))
+        # The last command sent, and when the move under way began (None: no move under way).
         self._sent = {"width": None, "pos": None, "at": None}
         self.DeclareStateOutputPort("gripper.state_measured", self._state)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
@@ -433,12 +436,14 @@ class RobotiqDriver(LeafSystem):
                 return self._fail(str(e))
             if s["fault"]:
                 return self._fail(fault_text(s["fault"]))
-            if self._sent["pos"] is not None:
-                _, problem = move_state(
+            if self._sent["pos"] is not None and self._sent["at"] is not None:
+                done, problem = move_state(
                     s, self._sent["pos"], self._clock() - self._sent["at"], self._move_timeout
                 )
                 if problem:
                     return self._fail(problem)
+                if done:
+                    self._sent["at"] = None  # the next command begins a new move
             w = s["width"]
         discrete_state.get_mutable_vector(self._state).SetFromVector([w, (w - old[0]) / self._period])
         return EventStatus.Succeeded()
@@ -457,7 +462,7 @@ class RobotiqDriver(LeafSystem):
                 pos = self._client.command(w, self._force, self._speed)
             except MogError as e:
                 return self._fail(str(e))
-            self._sent.update(pos=pos, at=self._clock())
+            self._sent.update(pos=pos, at=self._sent["at"] if self._sent["at"] is not None else self._clock())
         self._sent["width"] = w
         return EventStatus.Succeeded()
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -146,9 +147,13 @@ def read_text(path: str | Path, what: str = "file") -> str:
     if path.is_dir():
         raise MogError(f"{path}: is a directory, not a {what}")
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
+        if not stat.S_ISREG(path.stat().st_mode):  # a FIFO blocks, /dev/zero never ends
+            raise MogError(f"{path}: not a regular file, not a {what}")
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)  # bounded, whatever the file says its size is
+        if len(data) > MAX_FILE_BYTES:
             raise MogError(f"{path}: over {MAX_FILE_BYTES // 2**20} MiB, not a {what}")
-        return path.read_bytes().decode("utf-8")
+        return data.decode("utf-8")
     except PermissionError:
         raise MogError(f"{path}: permission denied") from None
     except UnicodeDecodeError:
@@ -157,9 +162,43 @@ def read_text(path: str | Path, what: str = "file") -> str:
         raise MogError(f"{path}: cannot be read ({e.strerror or e})") from None
 
 
+MAX_YAML_ALIASES = 100  # a scene or scenario needs none: aliases nest into a billion copies
+MAX_YAML_DEPTH = 40  # a scenario nests five deep
+
+
+def check_yaml(text: str, where: str) -> None:
+    """Refuses YAML that would expand past memory or recursion before it is built: more than
+    MAX_YAML_ALIASES aliases, or collections nested deeper than MAX_YAML_DEPTH (one scan of
+    its tokens, nothing expanded)."""
+    aliases = depth = 0
+    try:
+        for token in yaml.scan(text, Loader=yaml.SafeLoader):
+            if isinstance(token, yaml.AliasToken):
+                aliases += 1
+                if aliases > MAX_YAML_ALIASES:
+                    raise MogError(f"{where}: more than {MAX_YAML_ALIASES} YAML aliases")
+            elif isinstance(
+                token,
+                (
+                    yaml.BlockMappingStartToken,
+                    yaml.BlockSequenceStartToken,
+                    yaml.FlowMappingStartToken,
+                    yaml.FlowSequenceStartToken,
+                ),
+            ):
+                depth += 1
+                if depth > MAX_YAML_DEPTH:
+                    raise MogError(f"{where}: YAML nested more than {MAX_YAML_DEPTH} deep")
+            elif isinstance(token, (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)):
+                depth -= 1
+    except yaml.YAMLError:
+        return  # the loader that follows names the syntax error
+
+
 def _read_yaml(path: Path) -> dict:
     path = Path(path)
     text = read_text(path, "YAML file")
+    check_yaml(text, str(path))
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as e:
