@@ -100,9 +100,10 @@ class Sleep:
                 self._rest_since.pop(i, None)
                 self.woken += 1
         everything = None
-        # One object on the table always stays awake: with every body of the plant exactly at
-        # rest and out of contact (the arm idle at its observe pose, the rest asleep or
-        # retired), Drake 1.51's discrete solver fails to converge ("SAP solver failed").
+        # One object on the table always stays awake: with no contact at all and every body
+        # coming to rest (the arm idle at its observe pose, the rest asleep or retired; the
+        # velocities decay towards zero), Drake 1.51's discrete solver fails to converge
+        # ("SAP solver failed") within seconds.
         awake = [
             i for k, i in enumerate(ids) if i not in self.asleep and i not in skip and abs(p[k][2]) < 0.05
         ]
@@ -123,6 +124,15 @@ class Sleep:
             )
             awake.remove(i)
             plant.SetFreeBodySpatialVelocity(pc, self.bodies[i], SpatialVelocity.Zero())
+        if not awake and self.asleep:
+            # The last awake object left the table (picked): the sleeper nearest the gripper
+            # takes its place, so that some contact is always simulated (see above).
+            k = min(
+                (k for k, i in enumerate(ids) if i in self.asleep),
+                key=lambda k: np.min(np.linalg.norm(grip - p[k], axis=1)),
+            )
+            mgr.RemoveDeclaration(self.asleep.pop(ids[k]))
+            self._rest_since.pop(ids[k], None)
         if set(self.asleep) != before:
             self._carry(pc)
 
