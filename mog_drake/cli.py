@@ -764,6 +764,11 @@ def check_args(args) -> None:
         v = getattr(args, name, None)
         if v is not None and not isinstance(v, bool) and v < 1:
             raise MogError(f"--{name.replace('_', '-')} must be at least 1, got {v}")
+    if args.command == "gripper":
+        if not args.ip.strip():
+            raise MogError("--ip must name the gripper's host (the UR controller's address)")
+        if not 1 <= args.port <= 65535:
+            raise MogError(f"--port must be a TCP port (1-65535), got {args.port}")
     tables = getattr(args, "tables", None)
     if tables is not None and tables < 0:
         raise MogError(f"--tables must be at least 0, got {tables}")

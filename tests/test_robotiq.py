@@ -125,3 +125,23 @@ def test_nobody_listening():
     s.close()
     with pytest.raises(RobotiqError, match="cannot reach the gripper"):
         RobotiqClient("127.0.0.1", port, timeout=0.5)
+
+
+@pytest.mark.parametrize(
+    "argv,words",
+    [
+        (["--port", "0"], "--port must be a TCP port"),
+        (["--port", "70000"], "--port must be a TCP port"),
+        (["--port", "-1"], "--port must be a TCP port"),
+        (["--ip", " "], "--ip must name"),
+        (["--ip", "gripper.invalid"], "gripper address 'gripper.invalid'"),
+    ],
+)
+def test_gripper_arguments_that_name_no_gripper_are_user_errors(argv, words, capsys):
+    """A bad port or address is the user's mistake (exit 2), not a gripper fault (exit 3)."""
+    from mog_drake.cli import main
+
+    args = ["gripper", "status", "--ip", "127.0.0.1", *argv]
+    code = main(args)
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.count("\n") == 1, err

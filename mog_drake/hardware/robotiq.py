@@ -132,6 +132,8 @@ class RobotiqClient:
         self.cal = calibration or RobotiqCalibration()
         try:
             self._sock = socket.create_connection((host, port), timeout=timeout)
+        except socket.gaierror as e:  # the address itself is wrong: the user's, not the gripper's
+            raise MogError(f"gripper address {host!r}: {e.strerror or e}") from None
         except OSError as e:
             raise RobotiqError(f"cannot reach the gripper at {host}:{port}: {e.strerror or e}") from None
         self._buf = b""
