@@ -61,7 +61,6 @@ class Sleep:
         self.asleep: dict[int, object] = {}  # object id -> its collision filter's id
         self._rest_since: dict[int, float] = {}
         self._geometry = {i: plant.CollectRegisteredGeometries([b]) for i, b in bodies.items()}
-        self.woken = 0  # how many times an object was woken (for tests and benches)
 
     def update(self, root_context, skip=()) -> None:
         """Wakes what could be reached before the next update, then puts to sleep what has
@@ -96,9 +95,7 @@ class Sleep:
         for k, i in enumerate(ids):
             # An object asleep does not move, unless something set its state from outside.
             if i in self.asleep and (v[k] > 0 or w[k] > 0 or reachable(k, 1.0)):
-                mgr.RemoveDeclaration(self.asleep.pop(i))
-                self._rest_since.pop(i, None)
-                self.woken += 1
+                self._unfilter(mgr, i)
         everything = None
         # One object on the table always stays awake: with no contact at all and every body
         # coming to rest (the arm idle at its observe pose, the rest asleep or retired; the
@@ -131,8 +128,7 @@ class Sleep:
                 (k for k, i in enumerate(ids) if i in self.asleep),
                 key=lambda k: np.min(np.linalg.norm(grip - p[k], axis=1)),
             )
-            mgr.RemoveDeclaration(self.asleep.pop(ids[k]))
-            self._rest_since.pop(ids[k], None)
+            self._unfilter(mgr, ids[k])
         if set(self.asleep) != before:
             self._carry(pc)
 
@@ -156,6 +152,10 @@ class Sleep:
             self.scene_graph.GetMyMutableContextFromRoot(root_context)
         )
         for i in list(self.asleep) if ids is None else [i for i in ids if i in self.asleep]:
-            mgr.RemoveDeclaration(self.asleep.pop(i))
-            self._rest_since.pop(i, None)
+            self._unfilter(mgr, i)
         self._carry(pc)
+
+    def _unfilter(self, mgr, i: int) -> None:
+        """Object ``i`` back in collision (its weight is uncarried by the next `_carry`)."""
+        mgr.RemoveDeclaration(self.asleep.pop(i))
+        self._rest_since.pop(i, None)
