@@ -129,12 +129,14 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     one_line_error(*_pick(capsys, surface)[::2], "contact.plant.contact_surface_representation", "quad")
     # Unreadable: as root every file is readable, so the OS's refusal is modelled.
     locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
-    real = Path.read_bytes
-    monkeypatch.setattr(
-        Path,
-        "read_bytes",
-        lambda self: (_ for _ in ()).throw(PermissionError(13, "denied")) if self == locked else real(self),
-    )
+    import mog_drake.scenes.library as library
+
+    def refused(path, *a, **kw):  # what open() raises on a file the user may not read
+        if Path(path) == locked:
+            raise PermissionError(13, "denied")
+        return open(path, *a, **kw)
+
+    monkeypatch.setattr(library, "open", refused, raising=False)
     one_line_error(*_pick(capsys, locked)[::2], "permission denied")
 
 
