@@ -49,7 +49,7 @@ class ContactConfig:
     Hydroelastic contact with compliant prisms and rigid fingers, table and bin, and the
     `lagged` discrete approximation (point contact needs dt <= 0.5 ms for light prisms; `sap`
     diverges with Drake's default relaxation time). Time step 2 ms: on 60 random row-scene
-    candidates (`mog-drake bench agreement`), dt = 2, 1 and 0.5 ms gave the same verdict on
+    candidates (docs/physics.md), dt = 2, 1 and 0.5 ms gave the same verdict on
     every one, while 5 ms, though 2.4x cheaper, missed 3 of the 4 successes and invented one;
     a slower close (50 mm/s) at 5 ms still missed 3 of 4. Only 2 ms or finer tells the truth.
 
@@ -80,8 +80,8 @@ class ContactConfig:
     # rests on a handful of contact points and buzzes for good, on either table, except where
     # the box's own triangles cut its contact surface finer; with triangle surfaces it lies
     # still (docs/physics.md: `bench rest`). The pick-and-place scenario's station uses
-    # triangles. Upright objects rest either way (`bench table` compares the two tables on
-    # the planner's checks).
+    # triangles; the picking check a half-space (docs/physics.md compares the two tables on
+    # the planner's checks). Upright objects rest either way.
     table_collision: str = "box"
 
 
