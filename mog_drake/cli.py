@@ -189,8 +189,17 @@ def cmd_check(args) -> int:
 
 def _simulate(scene, group, grasp, args):
     """Runs the physics verifier on one grasp, optionally shown in Meshcat and recorded."""
+    from dataclasses import replace
+
+    from mog_drake.scenario import load_scenario
     from mog_drake.sim.verifier import DrakeVerifier
 
+    sc = load_scenario(args.scenario)  # a bad file is refused before anything starts
+    physics = sc.gripper
+    if args.force is not None:
+        if not (0 < args.force <= 235):
+            raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {args.force}")
+        physics = replace(physics, force_limit=args.force)
     meshcat = None
     if args.meshcat or args.record:
         from pydrake.geometry import StartMeshcat
@@ -198,16 +207,6 @@ def _simulate(scene, group, grasp, args):
         meshcat = StartMeshcat()
         if args.meshcat:
             print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
-    from dataclasses import replace
-
-    from mog_drake.scenario import load_scenario
-
-    sc = load_scenario(args.scenario)
-    physics = sc.gripper
-    if args.force is not None:
-        if not (0 < args.force <= 235):
-            raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {args.force}")
-        physics = replace(physics, force_limit=args.force)
     res = DrakeVerifier(sc.verifier, physics=physics, meshcat=meshcat).check(scene, group, grasp)
     if args.record:
         write_atomic(args.record, meshcat.StaticHtml())

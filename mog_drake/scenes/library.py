@@ -56,6 +56,12 @@ class Shape:
     def radius(self) -> float:
         return float(np.linalg.norm(self.vertices, axis=1).max())
 
+    @property
+    def reach(self) -> float:
+        """The farthest any point of the prism lies from its body origin (at the centre of its
+        base), however it is tilted (m)."""
+        return float(np.hypot(self.radius, self.height))
+
     def to_record(self) -> dict:
         return {
             "name": self.name,

@@ -252,7 +252,7 @@ class _GroupSim:
         self.poses = {i: scene.objects[i].pose for i in ids}
         # Highest point of each prism above its body origin (at its base), however it is
         # tilted: the farthest any point of it lies from that origin.
-        self.heights = {i: float(np.hypot(scene.shape(i).radius, scene.shape(i).height)) for i in ids}
+        self.heights = {i: scene.shape(i).reach for i in ids}
         self.table = scene.table
         self.build_time = time.perf_counter() - t0
 
@@ -278,8 +278,7 @@ class DrakeVerifier:
         self.gripper = gripper or GripperGeometry()
         self.physics = physics or GripperPhysics()
         self.meshcat = meshcat
-        if self.config.bodies not in ("group", "grasp"):
-            raise MogError(f"verifier bodies must be 'group' or 'grasp', got {self.config.bodies!r}")
+        self.config.check()
         self._sims: dict = {}  # key -> _GroupSim, least recently used first
         self._sim: _GroupSim | None = None
 

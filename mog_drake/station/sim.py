@@ -138,9 +138,7 @@ class StationHandles:
         from mog_drake.station.sleep import Sleep
 
         gripper = [self.plant.GetBodyByName(n, self.robot) for n in ("palm", "left_finger", "right_finger")]
-        radii = {
-            i: float(np.hypot(self.scene.shape(i).radius, self.scene.shape(i).height)) for i in self.bodies
-        }
+        radii = {i: self.scene.shape(i).reach for i in self.bodies}
         return Sleep(self.plant, self.scene_graph, self.bodies, gripper, radii, period=period)
 
 

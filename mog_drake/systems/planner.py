@@ -101,8 +101,10 @@ class PlannerSystem(LeafSystem):
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
-        # The last lookahead, its board in its info: the next starts no earlier than it ends.
+        # The lookahead for the next decision, until that decision takes (or drops) it.
         self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        # The last lookahead sent, kept after it was taken or dropped, its board in its info:
+        # one dropped may still run on its thread, and the next starts no earlier than it ends.
         self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",

@@ -24,7 +24,7 @@ def run(
     toppled: int = 0,
     progress: bool = True,
     budget: float = 0.0,
-    tables: int = 2,
+    tables: int = 3,
     out=None,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""

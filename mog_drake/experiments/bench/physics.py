@@ -72,7 +72,7 @@ def table_pairs(tables: int, seed: int) -> list[dict]:
     return pairs
 
 
-def bench_verifier(per_class: int = 25, tables: int = 2, seed: int = 0, out=None, progress=None) -> dict:
+def bench_verifier(per_class: int = 25, tables: int = 3, seed: int = 0, out=None, progress=None) -> dict:
     """The reference and the picking check on the same pairs (`row_pairs` and `table_pairs`):
     CPU per check of each, the agreement table, and every disagreement with the command that
     replays it (its scene written to ``out``)."""
