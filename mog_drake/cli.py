@@ -6,6 +6,7 @@ A user error prints one line `mog-drake: error: ...` and exits 2, with no traceb
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import re
@@ -200,13 +201,7 @@ def _simulate(scene, group, grasp, args):
         if not (0 < args.force <= 235):
             raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {args.force}")
         physics = replace(physics, force_limit=args.force)
-    meshcat = None
-    if args.meshcat or args.record:
-        from pydrake.geometry import StartMeshcat
-
-        meshcat = StartMeshcat()
-        if args.meshcat:
-            print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
+    meshcat = _meshcat(args)
     res = DrakeVerifier(sc.verifier, physics=physics, meshcat=meshcat).check(scene, group, grasp)
     if args.record:
         write_atomic(args.record, meshcat.StaticHtml())
@@ -383,6 +378,15 @@ def _scenario(args):
         sc.scene = replace(sc.scene, n_objects=args.objects)
     if getattr(args, "time_limit", None):
         sc.time_limit = args.time_limit
+    for flag, given in (
+        ("--robot-ip", getattr(args, "robot_ip", None)),
+        ("--dry-run", getattr(args, "dry_run", False)),
+    ):
+        if given and not sc.hardware.enabled:
+            raise MogError(
+                f"{flag} applies to a hardware scenario (hardware.enabled: true, e.g. models/hardware.yaml);"
+                f" {args.scenario or 'the default scenario'} is simulated"
+            )
     if getattr(args, "robot_ip", None):
         sc.hardware = replace(sc.hardware, robot_ip=args.robot_ip)
     if getattr(args, "dry_run", False):
@@ -390,21 +394,37 @@ def _scenario(args):
     return sc
 
 
+def _meshcat(args):
+    """A Meshcat for --meshcat (its address on stderr, once) or --record, else None. Drake's
+    own INFO line about it is kept off stderr."""
+    if not (args.meshcat or args.record):
+        return None
+    import logging
+
+    from pydrake.geometry import StartMeshcat
+
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)
+    try:
+        meshcat = StartMeshcat()
+    finally:
+        drake_log.setLevel(level)
+    if args.meshcat:
+        print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
+    return meshcat
+
+
 def cmd_pick(args) -> int:
     """Builds the pick-and-place Diagram and runs it until the table is clear."""
     from mog_drake.systems.pick import attempt_line, run_pick, run_text
 
     sc = _scenario(args)
-    meshcat = None
-    if args.meshcat or args.record:
-        from pydrake.geometry import StartMeshcat
-
+    meshcat = _meshcat(args)
+    if meshcat is not None:
         from mog_drake.station.sim import frame_work_cell
 
-        meshcat = StartMeshcat()
         frame_work_cell(meshcat, sc)
-        if args.meshcat:
-            print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
 
     def line(k, a):
         if not args.json:
@@ -416,7 +436,11 @@ def cmd_pick(args) -> int:
     if hw and not args.json:
         print(
             f"hardware: UR5 at {sc.hardware.robot_ip or '(no address)'}"
-            + (" -- DRY RUN, commands are logged, not sent" if sc.hardware.dry_run else ""),
+            + (
+                f" -- DRY RUN, commands are logged to {sc.hardware.command_log or 'stderr'}, not sent"
+                if sc.hardware.dry_run
+                else ""
+            ),
             flush=True,
         )
     run = run_pick(sc, meshcat=meshcat, on_attempt=line, realtime=hw and not sc.hardware.dry_run)
@@ -745,6 +769,10 @@ class _Parser(argparse.ArgumentParser):
 IMAGE_SUFFIXES = (".png", ".svg", ".pdf", ".jpg", ".jpeg")
 
 
+# Candidate grids past these sizes take minutes and gigabytes and see nothing more.
+MOST = {"positions": 10_000, "orientations": 360}
+
+
 def check_args(args) -> None:
     """Refuses bad numbers and output paths before anything runs."""
     for name in (
@@ -763,6 +791,10 @@ def check_args(args) -> None:
         v = getattr(args, name, None)
         if v is not None and not isinstance(v, bool) and v < 1:
             raise MogError(f"--{name.replace('_', '-')} must be at least 1, got {v}")
+    for name, most in MOST.items():
+        v = getattr(args, name, None)
+        if v is not None and v > most:
+            raise MogError(f"--{name} must be at most {most:,} (the grid's memory and time), got {v:,}")
     if args.command == "gripper":
         if not args.ip.strip():
             raise MogError("--ip must name the gripper's host (the UR controller's address)")
@@ -799,9 +831,25 @@ def check_args(args) -> None:
         raise MogError(f"--out {out} is a file: give a folder")
 
 
+@contextlib.contextmanager
+def _one_line_warnings():
+    """Within the block a warning is one line on stderr, ``mog-drake: warning: ...``, and
+    numpy's RuntimeWarnings (a mean of nothing, 0 / 0) are not shown: their NaN is in the
+    table already."""
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"mog-drake: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.showwarning = show
+        yield
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
-        with stop_on_signals():
+        with stop_on_signals(), _one_line_warnings():
             args = build_parser().parse_args(argv)
             check_args(args)
             return int(args.func(args) or 0)

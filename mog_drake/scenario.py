@@ -151,7 +151,7 @@ class HardwareSpec:
     gripper_port: int = 63352
     camera: Union[RealSenseSource, ReplaySource] = field(default_factory=RealSenseSource)  # noqa: UP007
     dry_run: bool = False  # log every command instead of sending it
-    command_log: str = ""  # dry run: JSON-lines file (default: stderr)
+    command_log: str = "out/dry_run.jsonl"  # dry run: JSON lines of the commands, one run's
     # Palm box (xmin, xmax, ymin, ymax, zmin, zmax; m, table frame); the fingertips stay inside
     # it in x and y, and above the table top.
     workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
@@ -394,6 +394,26 @@ def _box(values, key: str, n: int) -> None:
         raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {list(values)}")
 
 
+def _check_sources(sc: Scenario) -> None:
+    """The scene's and the replay camera's settings, each named."""
+    from mog_drake.scenes import ROW_CLASSES
+
+    s = sc.scene
+    if isinstance(s, (ClutteredScene, RowScene)) and not 0 <= s.seed < 2**63:
+        raise MogError(f"scene.seed must be a whole number >= 0, got {s.seed}")
+    if isinstance(s, ClutteredScene) and s.n_objects < 0:
+        raise MogError(f"scene.n_objects must be at least 0 (0: the whole inventory), got {s.n_objects}")
+    if isinstance(s, RowScene) and s.row_class not in ROW_CLASSES:
+        raise MogError(f"scene.row_class must be one of {sorted(ROW_CLASSES)}, got {s.row_class}")
+    if isinstance(s, SceneFile) and not s.file.strip():
+        raise MogError("scene.file must name a scene file (!SceneFile {file: my_scene.yaml})")
+    cam = sc.hardware.camera
+    if isinstance(cam, ReplaySource):
+        if not cam.dir.strip():
+            raise MogError("hardware.camera.dir must name a folder of recorded frames")
+        _in(cam.frame_period, "hardware.camera.frame_period (s)", 0, 1e9)
+
+
 def check_scenario(sc: Scenario) -> None:
     """Refuses, at load, a setting that would fail only once the robot runs, or crash in the
     physics: every number finite, and each in the range it means something in (the key named)."""
@@ -401,6 +421,7 @@ def check_scenario(sc: Scenario) -> None:
         if not math.isfinite(v):
             raise MogError(f"{key} must be a finite number, got {v!r}")
     sc.planner.check()
+    _check_sources(sc)
     _in(sc.time_limit, "time_limit", 0, 1e6)
     r = sc.robot
     if len(r.base) != 3 or len(r.home) != 6:
@@ -456,6 +477,10 @@ def check_scenario(sc: Scenario) -> None:
     _in(hw.burst_window, "hardware.burst_window (s)", 0, 1.0)
     _in(hw.stale_after, "hardware.stale_after (s)", 0, 10.0)
     _in(hw.link_clearance, "hardware.link_clearance (m)", 0, 1.0, lo_open=False)
+    # Each a wait on the gripper: 0 would fault every request, and nothing may wait past 60 s.
+    _in(hw.gripper_timeout, "hardware.gripper_timeout (s)", 0, 20.0)
+    _in(hw.gripper_activation_timeout, "hardware.gripper_activation_timeout (s)", 0, 60.0)
+    _in(hw.gripper_move_timeout, "hardware.gripper_move_timeout (s)", 0, 60.0)
     _box(hw.workspace, "hardware.workspace", 6)
     if hw.link_box:
         _box(hw.link_box, "hardware.link_box", 6)

@@ -153,6 +153,14 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
         ("camera: {width: -640}", "camera.width"),
         ("scene: !RowScene {row_class: x}", "scene.row_class"),
         ("colour: red", "colour"),
+        ("hardware: {gripper_timeout: 0}", "hardware.gripper_timeout"),
+        ("scene: !RowScene {seed: -5}", "scene.seed"),
+        ("scene: !RowScene {row_class: 9}", "scene.row_class"),
+        ("scene: {n_objects: -1}", "scene.n_objects"),
+        ("scene: !SceneFile {file: ''}", "scene.file"),
+        ("hardware: {camera: !ReplaySource {dir: x, frame_period: 0}}", "hardware.camera.frame_period"),
+        ("hardware: {camera: !ReplaySource {dir: x, frame_period: -1}}", "hardware.camera.frame_period"),
+        ("hardware: {gripper_move_timeout: 1e6}", "hardware.gripper_move_timeout"),
     ],
 )
 def test_invalid_scenario_values_are_refused_at_load_naming_the_key(text, key):
@@ -184,6 +192,15 @@ def test_a_scene_with_no_objects_and_a_shape_of_absurd_height(tmp_path, capsys):
         "shapes:\n  tower: {vertices: [[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01], [-0.01, 0.01]], height: 1e308}\n",
     )
     one_line_error(*run(capsys, "shapes", "--shapes", shapes)[::2], "tower", "height")
+    sheet = _write(
+        tmp_path,
+        "sheet.yaml",
+        "shapes:\n  sheet: {vertices: [[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01], [-0.01, 0.01]], height: 1e-9}\n",
+    )
+    one_line_error(*run(capsys, "shapes", "--shapes", sheet)[::2], "sheet", "height must be at least")
+    crowd = tmp_path / "crowd.yaml"
+    crowd.write_text("objects:\n" + "- {shape: thin_bar, pose: [0, 0, 0]}\n" * 501)
+    one_line_error(*run(capsys, "candidates", crowd)[::2], "501 objects; a table holds at most 500")
 
 
 # --- command-line arguments -----------------------------------------------------------------------
@@ -201,6 +218,9 @@ def test_bad_arguments_get_one_line(tmp_path, capsys):
         (["pick", "--bogus"], "unrecognized arguments"),
         (["check", scene], "--grasp"),
         (["nonsense"], "invalid choice"),
+        (["pick", "--robot-ip", "192.0.2.1"], "--robot-ip applies to a hardware scenario"),
+        (["pick", "--dry-run"], "--dry-run applies to a hardware scenario"),
+        (["candidates", scene, "--positions", 100_000], "--positions must be at most 10,000"),
     ]
     for argv, words in cases:
         one_line_error(*run(capsys, *argv)[::2], words)
@@ -288,6 +308,88 @@ def test_a_second_sweep_on_the_same_folder_is_refused_naming_the_holder(tmp_path
     assert run_sweep([{"key": "a", "value": 1}], _echo, tmp_path, progress=False) == [
         {"key": "a", "value": 1}
     ]
+
+
+@pytest.mark.parametrize("text", ["", "{garbage", "[1, 2]", '"picking"'])
+def test_a_broken_sweep_json_is_one_line_naming_it(tmp_path, text):
+    from mog_drake.experiments.sweep import check_params
+
+    (tmp_path / "sweep.json").write_text(text)
+    with pytest.raises(MogError, match=r"sweep\.json is not a sweep's parameters \(a JSON object\)"):
+        check_params(tmp_path, {"experiment": "picking"})
+    assert (tmp_path / "sweep.json").read_text() == text  # left for the user to look at
+
+
+def test_a_sweep_into_another_experiments_folder_names_both(tmp_path):
+    from mog_drake.experiments.sweep import check_params
+
+    check_params(tmp_path, {"experiment": "picking", "seed": 0})
+    with pytest.raises(MogError, match="holds a picking sweep, not a conditions one"):
+        check_params(tmp_path, {"experiment": "conditions", "classes": [1]})
+
+
+def test_sweep_parameters_are_recorded_under_the_folder_lock(tmp_path):
+    """Two sweeps starting at once: the one that finds the folder locked records nothing (the
+    other's sweep.json stays), and says who holds it."""
+    import fcntl
+
+    from mog_drake.experiments.sweep import check_params
+
+    check_params(tmp_path, {"experiment": "picking", "seed": 0})
+    with open(tmp_path / ".lock", "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        f.write("4242")
+        f.flush()
+        with pytest.raises(MogError, match=r"in use by another sweep \(process 4242\)"):
+            check_params(tmp_path, {"experiment": "picking", "seed": 0})
+    assert json.loads((tmp_path / "sweep.json").read_text()) == {"experiment": "picking", "seed": 0}
+
+
+def test_records_of_the_wrong_shape_are_skipped_and_run_again(tmp_path, capsys):
+    """Lines that are JSON records with a key but not what a picking summary reads (a list,
+    a missing summary, a summary of words, a key that is a list) are skipped with one warning
+    line each, here and when read as a --compare folder."""
+    from mog_drake.experiments.picking_eval import compare, valid_run
+    from mog_drake.experiments.sweep import load_results
+
+    good = {
+        "key": "mog-0",
+        "mode": "mog",
+        "scene_seed": 7,
+        "attempts": [],
+        "summary": {"pph": 500.0, "finished": "clear"},
+    }
+    lines = [
+        good,
+        [1, 2],
+        {"key": ["x"], "mode": "mog"},
+        {"key": "mog-1", "mode": "mog", "scene_seed": 8, "attempts": []},
+        {"key": "mog-2", "mode": "mog", "scene_seed": 9, "attempts": [], "summary": {"pph": "fast"}},
+    ]
+    path = tmp_path / "results.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    assert list(load_results(path, repair=False, valid=valid_run)) == ["mog-0"]
+    err = capsys.readouterr().err
+    assert err.count("\n") == 4 and all(f"line {n} is not a result record" in err for n in (2, 3, 4, 5)), err
+    other = {**good, "summary": {"pph": 600.0, "finished": "clear"}}
+    doc = compare(list(load_results(path, repair=False, valid=valid_run).values()), [other])
+    assert doc["tables"] == 1 and doc["rows"][0]["b_minus_a"] == pytest.approx(100.0)
+
+
+def test_warnings_are_one_line_and_numpy_runtime_warnings_none(monkeypatch, capsys):
+    import warnings
+
+    import numpy as np
+
+    from mog_drake import cli
+
+    def noisy(args):
+        warnings.warn("frames recorded\n  without intrinsics", stacklevel=1)
+        return 0 if np.isnan(np.mean([])) else 1  # numpy's "Mean of empty slice"
+
+    monkeypatch.setattr(cli, "cmd_shapes", noisy)
+    code, out, err = run(capsys, "shapes")
+    assert code == 0 and err == "mog-drake: warning: frames recorded without intrinsics\n", err
 
 
 def test_summary_only_writes_nothing(tmp_path, capsys):

@@ -324,8 +324,11 @@ def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, 
     with pytest.raises(MogError, match="table"):
         picking_eval.check_comparable(a, {**params, "scenario": "table: [-0.2, 0.2, -0.3, 0.3]\n"})
     picking_eval.check_comparable(a, {**params, "scenario": "planner: {lookahead: false}\n", "scenes": 5})
-    (a / "sweep.json").write_text("[]")
+    (a / "sweep.json").write_text(json.dumps({**params, "experiment": "conditions"}))
     with pytest.raises(MogError, match="not a picking sweep"):
+        picking_eval.check_comparable(a, params)
+    (a / "sweep.json").write_text("[]")
+    with pytest.raises(MogError, match="--compare: .* not a sweep's parameters"):
         picking_eval.check_comparable(a, params)
 
 

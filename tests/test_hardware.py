@@ -285,6 +285,44 @@ def test_faults_keep_the_gripper_closed():
         assert not [r for r in srv.received if r.startswith("SET")]
 
 
+def test_an_object_lost_after_the_lift_is_warned_and_counted_as_a_drop():
+    """The fake closes onto an object (OBJ 2), then the object slips out: the fingers finish
+    the close (OBJ 3) with no new command. The driver warns, notes when, and the attempt
+    under way counts it as dropped; opening over the bin afterwards is no loss."""
+    from mog_drake.systems.pick import PickRun, attempt_line
+
+    faults = FaultLatch()
+    with (
+        FakeRobotiq(active=True, object_at=150) as srv,
+        RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as client,
+    ):
+        g = RobotiqDriver(client, faults, force=40.0, period=0.05)
+        gctx = g.CreateDefaultContext()
+        sim = Simulator(g, gctx)
+        sim.set_target_realtime_rate(1.0)  # the fake's moves take wall-clock time
+        g.GetInputPort("gripper.position").FixValue(gctx, [0.0])
+        sim.AdvanceTo(0.5)
+        assert g.lost == [] and g.get_output_port().Eval(gctx)[0] > 0.01  # held, jaws apart
+        srv.lose()
+        with pytest.warns(UserWarning, match=r"gripper: lost what it held at t=0\.[5-9]\d s \(OBJ 2 -> 3"):
+            sim.AdvanceTo(0.8)
+        assert len(g.lost) == 1 and 0.5 <= g.lost[0] <= 0.8
+        g.GetInputPort("gripper.position").FixValue(gctx, [0.085])  # open over the bin
+        sim.AdvanceTo(1.2)
+        assert len(g.lost) == 1 and not faults
+    a = {"group": [0, 1], "shapes": ["a", "b"], "planning_time": 0.1, "physics_checks": 1}
+    run = PickRun(
+        objects=2,
+        attempts=[
+            {**a, "start": 0.0, "end": 2.0, "picked": None, "lost": 1},
+            {**a, "start": 2.0, "end": 4.0, "picked": None, "lost": 0},
+        ],
+    )
+    assert run.summary()["dropped"] == 1
+    assert "dropped in transit" in attempt_line(1, run.attempts[0])
+    assert "dropped" not in attempt_line(2, run.attempts[1])
+
+
 @pytest.mark.parametrize(
     "mode,expected",
     [

@@ -90,6 +90,16 @@ def test_activation_that_never_completes_times_out():
             g.activate()
 
 
+def test_activating_a_faulted_gripper_names_the_fault_at_once():
+    with (
+        FakeRobotiq(fault=0x0E) as srv,
+        RobotiqClient("127.0.0.1", srv.port, activation_timeout=5.0) as g,
+    ):
+        # The fault's own message, not the timeout's "did not complete within 5 s".
+        with pytest.raises(RobotiqError, match=r"fault 0x0E \(overcurrent\) during activation \(STA 1\)"):
+            g.activate()
+
+
 def test_malformed_reply_is_an_error():
     with FakeRobotiq("malformed") as srv, RobotiqClient("127.0.0.1", srv.port, timeout=1.0) as g:
         with pytest.raises(RobotiqError, match="malformed reply 'POS banana' to 'GET POS'"):

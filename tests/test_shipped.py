@@ -63,3 +63,56 @@ def test_the_hardware_scenario_dry_runs_through_the_replay_camera(replay_dir, tm
     run_pick(sc)
     lines = [json.loads(x) for x in log.read_text().splitlines()]
     assert {x["device"] for x in lines} == {"ur5", "robotiq"}
+
+
+# Placeholders of the documented commands, and values that stand for them.
+PLACEHOLDERS = {"FILE": "models/scenario.yaml", "S": "1", "N": "2", "DIR": "out/x", "ADDRESS": "192.0.2.1"}
+
+
+def _documented_commands() -> list[str]:
+    """Every ``mog-drake ...`` command of the README and the runbook: the lines of their code
+    blocks (comments cut) and the ones quoted inline."""
+    import re
+
+    commands = []
+    for doc in ("README.md", "docs/hardware.md"):
+        for line in (ROOT / doc).read_text().splitlines():
+            if line.strip().startswith("mog-drake "):
+                commands.append(line.split("  #")[0].strip())
+            else:
+                commands += re.findall(r"`(mog-drake [^`]*)`", line)
+    return commands
+
+
+def _variants(command: str) -> list[list[str]]:
+    """The argument lists a documented command stands for: each ``[optional]`` part left out
+    and put in (its first alternative), each ``a | b`` alternative on its own."""
+    import re
+
+    command = command.replace("--grasp X Y THETA", "--grasp 0 0 0")
+    bare = re.sub(r"\s*\[[^\]]*\]", "", command)
+    full = re.sub(r"\[([^\]|]*)(\|[^\]]*)?\]", r"\1", command)
+    out = []
+    for text in (bare, full):
+        words = text.split()[1:]
+        head = [w for w in words if w != "|"]
+        if "|" in words:  # "bench a | b | c", "gripper ... open | close | status"
+            k = words.index("|") - 1
+            alternatives = [w for w in words[k:] if w != "|"]
+            head = words[:k]
+            out += [head + [a] for a in alternatives]
+        else:
+            out.append(head)
+    return [[PLACEHOLDERS.get(w, w) for w in args] for args in out]
+
+
+def test_every_documented_command_parses():
+    """Each command the README and the runbook show is one the CLI accepts (flags, choices),
+    with and without its optional parts."""
+    from mog_drake.cli import build_parser
+
+    commands = _documented_commands()
+    assert len(commands) >= 15, commands
+    for command in commands:
+        for args in _variants(command):
+            build_parser().parse_args(args)  # a usage error raises

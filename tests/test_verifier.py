@@ -160,7 +160,7 @@ def test_checks_of_one_grasp_agree_whichever_bodies_are_simulated():
         DrakeVerifier(VerifierConfig(bodies="all"))
 
 
-def test_check_simulate_cli(tmp_path, capsys):
+def test_check_simulate_cli(tmp_path, capsys, caplog):
     import json
 
     from mog_drake.cli import main
@@ -170,8 +170,11 @@ def test_check_simulate_cli(tmp_path, capsys):
     scene.save(path)
     html = tmp_path / "replay.html"
     assert main(["check", str(path), "--grasp", "0", "0", "0", "--json", "--record", str(html)]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    cap = capsys.readouterr()
+    doc = json.loads(cap.out)
     assert doc["simulation"]["success"] is True and doc["simulation"]["lifted"] == [0]
+    # Nothing on stderr, not even Drake's "Meshcat listening" log line.
+    assert cap.err == "" and not [r for r in caplog.records if "Meshcat" in r.getMessage()]
     import base64
     import re
 

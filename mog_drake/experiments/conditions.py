@@ -117,6 +117,17 @@ def is_fault(error: str) -> bool:
     return bool(error) and not all("left the table" in part for part in error.split("; "))
 
 
+def valid_row(rec: dict) -> bool:
+    """A stored scene has what `summarize` reads: its class and a list of candidate rows of
+    seven fields each."""
+    rows = rec.get("candidates")
+    return (
+        isinstance(rec.get("class"), int)
+        and isinstance(rows, list)
+        and all(isinstance(r, list) and len(r) == 7 for r in rows)
+    )
+
+
 def summarize(results: list[dict]) -> dict:
     """Per-class and overall rows, plus every false negative with what replays it."""
     by_class: dict[int, list[dict]] = {}
@@ -281,7 +292,9 @@ def run(
         },
     )
     tasks = row_tasks(classes, scenes_per_class, seed, n_positions, n_orientations)
-    results = run_sweep(tasks, conditions_worker, out_dir, jobs, ray_address, "conditions", progress)
+    results = run_sweep(
+        tasks, conditions_worker, out_dir, jobs, ray_address, "conditions", progress, valid_row
+    )
     summary = summarize(results)
     summary["false_negatives"] = explain_false_negatives(summary["false_negatives"])
     return summary, results

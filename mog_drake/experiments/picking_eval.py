@@ -9,7 +9,7 @@ from collections import Counter
 from pathlib import Path
 
 from mog_drake.experiments.stats import mean_ci
-from mog_drake.experiments.sweep import check_params, run_sweep
+from mog_drake.experiments.sweep import check_params, read_params, run_sweep
 
 PAPER_TABLE1 = {
     "sog": {"success_rate": 73.31, "picked_pct": 97.77, "pph": 212.59},
@@ -70,6 +70,21 @@ def picking_worker(task: dict) -> dict:
         # Where each object outside the bin ended: {id: [where, [x, y, z], shape]}.
         "left": {str(i): [w, p, run.shapes[i]] for i, (w, p) in run.left.items()},
     }
+
+
+def valid_run(rec: dict) -> bool:
+    """A stored run has what the summaries read: its mode, its table's seed, a list of
+    attempts and a summary of numbers (but ``finished``, a word)."""
+    s = rec.get("summary")
+    return (
+        isinstance(rec.get("mode"), str)
+        and isinstance(rec.get("scene_seed"), int)
+        and isinstance(rec.get("attempts"), list)
+        and isinstance(s, dict)
+        and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for k, v in s.items() if k != "finished"
+        )
+    )
 
 
 def grouping_ceiling(scene, radius: float, w_g: float, grouping: str = "radius") -> float:
@@ -222,7 +237,6 @@ def tables_of(params: dict) -> dict:
 def check_comparable(compare_dir, params: dict) -> None:
     """Refuses, before a sweep runs, to pair it with the sweep in ``compare_dir`` unless both
     ran the same tables (`tables_of`): the one line names the first difference."""
-    import json
 
     from mog_drake.errors import MogError
 
@@ -230,10 +244,10 @@ def check_comparable(compare_dir, params: dict) -> None:
     if not where.is_file():
         raise MogError(f"--compare: {where} does not exist (give a picking sweep's --out folder)")
     try:
-        other = json.loads(where.read_text())
-    except (ValueError, UnicodeDecodeError):
-        raise MogError(f"--compare: {where} is not a sweep's parameters (JSON)") from None
-    if not isinstance(other, dict) or other.get("experiment") != "picking":
+        other = read_params(compare_dir)
+    except MogError as e:
+        raise MogError(f"--compare: {e}") from None
+    if other.get("experiment") != "picking":
         raise MogError(f"--compare: {where} is not a picking sweep")
     a, b = tables_of(other), tables_of(params)
     for key in a:
@@ -388,7 +402,7 @@ def run(
     # More tables, or another mode on the same tables, extend a sweep (runs are keyed by both).
     check_params(out_dir, params, growable=("scenes", "modes"))
     todo = tasks(scenes, modes, seed, objects, time_limit, scenario)
-    results = run_sweep(todo, picking_worker, out_dir, jobs, ray_address, "picking", progress)
+    results = run_sweep(todo, picking_worker, out_dir, jobs, ray_address, "picking", progress, valid_run)
     summary = summarize(results, modes)
     done = {r["key"] for r in results}
     for row in summary["rows"]:
@@ -497,7 +511,7 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
         other = Path(compare_dir) / "results.jsonl"
         if not other.exists():
             raise MogError(f"--compare: {other} does not exist (give a picking sweep's --out folder)")
-        paired = compare(list(load_results(other, repair=False).values()), results)
+        paired = compare(list(load_results(other, repair=False, valid=valid_run).values()), results)
         summary["compare"] = {"a": str(compare_dir), **paired}
         text += (
             f"\n\npaired with {compare_dir} (A) on {paired['tables']} common runs; B = {out}\n"

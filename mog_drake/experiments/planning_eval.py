@@ -157,7 +157,16 @@ def run(
         {**t, "methods": methods, "max_physics": max_physics}
         for t in row_tasks(classes, scenes_per_class, seed, n_positions, n_orientations)
     ]
-    results = run_sweep(tasks, planner_worker, out_dir, jobs, ray_address, "planner", progress)
+    results = run_sweep(
+        tasks,
+        planner_worker,
+        out_dir,
+        jobs,
+        ray_address,
+        "planner",
+        progress,
+        lambda r: isinstance(r.get("class"), int) and isinstance(r.get("methods_results"), dict),
+    )
     return summarize(results, methods), results
 
 

@@ -27,10 +27,13 @@ from mog_drake.errors import MogError
 from mog_drake.progress import Progress
 
 
-def load_results(path: Path, repair: bool = True) -> dict[str, dict]:
+def load_results(
+    path: Path, repair: bool = True, valid: Callable[[dict], bool] | None = None
+) -> dict[str, dict]:
     """Finished results by key. A torn (unterminated) last line is left out, and so is any
-    line that is not a JSON record with a "key" (each named in a one-line warning on stderr):
-    its task has no result, so it runs again. With ``repair`` such lines are also cut from the
+    line that is not a JSON record with a "key", or that ``valid`` (the experiment's own
+    test of a record's fields) refuses (each named in a one-line warning on stderr): its task
+    has no result, so it runs again. With ``repair`` such lines are also cut from the
     file, which only the sweep about to append to it may do: read while another process is
     writing, the last line is still being written."""
     path = Path(path)
@@ -47,7 +50,10 @@ def load_results(path: Path, repair: bool = True) -> dict[str, dict]:
         try:
             rec = json.loads(line)
             key = rec["key"]
-        except (ValueError, TypeError, KeyError):
+            hash(key)
+            if valid is not None and not valid(rec):
+                raise ValueError("fields")
+        except (ValueError, TypeError, KeyError, AttributeError):
             bad.append(n)
             continue
         out[key] = rec
@@ -67,22 +73,53 @@ def load_results(path: Path, repair: bool = True) -> dict[str, dict]:
 def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes_per_class",)) -> None:
     """Records the sweep's parameters; refuses to resume a folder made with different ones
     (except the ``growable`` ones, which may change: a larger sweep extends a smaller one).
-    A summary only reads: it records nothing."""
+    A summary only reads: it records nothing. Read, compared and written under the folder's
+    lock, and written whole (renamed into place): two sweeps starting at once cannot both
+    record theirs."""
     out_dir = Path(out_dir)
-    path = out_dir / "sweep.json"
-    if path.exists():
-        old = json.loads(path.read_text())
-        diff = [k for k in set(old) | set(params) if k not in growable and old.get(k) != params.get(k)]
-        if diff:
-            k = sorted(diff)[0]
-            raise MogError(
-                f"{out_dir} holds a sweep with {k}={_short(old.get(k))}, not {_short(params.get(k))}: "
-                "use another --out folder"
-            )
     if _SUMMARY_ONLY:
+        _check_params(out_dir, params, growable)
         return
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(params, indent=2))
+    with folder_lock(out_dir):
+        _check_params(out_dir, params, growable)
+        from mog_drake.outputs import write_atomic
+
+        write_atomic(out_dir / "sweep.json", json.dumps(params, indent=2))
+
+
+def read_params(out_dir: Path) -> dict | None:
+    """A folder's sweep parameters (sweep.json), None if it has none; one line if it is not a
+    JSON object."""
+    path = Path(out_dir) / "sweep.json"
+    if not path.exists():
+        return None
+    try:
+        old = json.loads(path.read_bytes())
+    except (ValueError, UnicodeDecodeError):
+        old = None
+    if not isinstance(old, dict):
+        raise MogError(
+            f"{path} is not a sweep's parameters (a JSON object): move it away or use another --out folder"
+        )
+    return old
+
+
+def _check_params(out_dir: Path, params: dict, growable: Iterable[str]) -> None:
+    old = read_params(out_dir)
+    if old is None:
+        return
+    if old.get("experiment") != params.get("experiment"):
+        raise MogError(
+            f"{out_dir} holds a {old.get('experiment') or 'different'} sweep, not a "
+            f"{params.get('experiment')} one: use another --out folder"
+        )
+    diff = [k for k in set(old) | set(params) if k not in growable and old.get(k) != params.get(k)]
+    if diff:
+        k = sorted(diff)[0]
+        raise MogError(
+            f"{out_dir} holds a sweep with {k}={_short(old.get(k))}, not {_short(params.get(k))}: "
+            "use another --out folder"
+        )
 
 
 def _short(value, n: int = 60) -> str:
@@ -144,17 +181,19 @@ def run_sweep(
     ray_address: str | None = None,
     label: str = "sweep",
     progress: bool = True,
+    valid: Callable[[dict], bool] | None = None,
 ) -> list[dict]:
     """Runs ``worker(task)`` for every task whose ``key`` has no result yet; returns all
     results in task order. ``worker`` must be a module-level function (it is pickled).
+    ``valid``: the experiment's test of a stored record (see `load_results`).
     Raises ``MogError`` after the last task if any task raised (see the module's docstring)."""
     out_dir = Path(out_dir)
     path = out_dir / "results.jsonl"
     if _SUMMARY_ONLY:  # a summary of a sweep still under way only reads: it must not touch the file
-        done = load_results(path, repair=False)
+        done = load_results(path, repair=False, valid=valid)
         return [done[t["key"]] for t in tasks if t["key"] in done]
     with folder_lock(out_dir):
-        done = load_results(path)
+        done = load_results(path, valid=valid)
         todo = [t for t in tasks if t["key"] not in done]
         bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
         bar.update(len(tasks) - len(todo))
@@ -186,9 +225,14 @@ _FAILED = "sweep_error"
 
 def _guarded(worker: Callable[[dict], dict], task: dict) -> dict:
     """``worker(task)``, or a failure record if it raised (in the worker's own process, so the
-    traceback survives pickling)."""
+    traceback survives pickling). A worker told to stop (the pool's SIGTERM when the sweep is
+    stopped) exits quietly, its task left to run again."""
+    from mog_drake.errors import Terminated
+
     try:
         return worker(task)
+    except Terminated as e:
+        raise SystemExit(e.exit_code) from None
     except Exception as e:
         return {
             "key": task["key"],
@@ -219,6 +263,12 @@ def _execute(tasks: list[dict], worker, jobs: int, ray_address: str | None):
     else:
         import multiprocessing as mp
 
+        # The pool's semaphores are freed by multiprocessing's resource tracker (a process of
+        # its own) if this one is killed outright; it then warns about them on our stderr.
+        # Nothing is lost: the warning goes, not the cleanup.
+        quiet = "ignore::UserWarning:multiprocessing.resource_tracker"
+        if quiet not in os.environ.get("PYTHONWARNINGS", ""):
+            os.environ["PYTHONWARNINGS"] = ",".join(filter(None, (os.environ.get("PYTHONWARNINGS"), quiet)))
         # spawn: fresh interpreters, nothing of the parent's Drake state is shared.
         with mp.get_context("spawn").Pool(
             jobs, initializer=_die_with_parent, initargs=(os.getpid(),)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -209,10 +210,13 @@ class MotionBudget:
 
 
 class CommandLog:
-    """JSON lines of the commands a dry run would send (to a file, or stderr)."""
+    """JSON lines of the commands a dry run would send: to a file (written afresh, its folder
+    made), or to stderr without one."""
 
     def __init__(self, path: str = ""):
-        self._f = open(path, "a") if path else sys.stderr  # noqa: SIM115
+        if path:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        self._f = open(path, "w") if path else sys.stderr  # noqa: SIM115
 
     def write(self, device: str, t: float, **fields) -> None:
         self._f.write(json.dumps({"device": device, "t": round(t, 4), **fields}) + "\n")
@@ -416,6 +420,8 @@ class RobotiqDriver(LeafSystem):
         self._state = self.DeclareDiscreteState(np.array([initial_width, 0.0]))
         # The last command sent, and when the move under way began (None: no move under way).
         self._sent = {"width": None, "pos": None, "at": None}
+        self._holding = False  # the last move ended on an object (OBJ 2) and none followed
+        self.lost: list[float] = []  # when a held object was lost (simulated time, s)
         self.DeclareStateOutputPort("gripper.state_measured", self._state)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
@@ -444,6 +450,15 @@ class RobotiqDriver(LeafSystem):
                     return self._fail(problem)
                 if done:
                     self._sent["at"] = None  # the next command begins a new move
+                    self._holding = s["object"] == 2
+            if self._holding and self._sent["at"] is None and s["object"] == 3:
+                self._holding = False
+                self.lost.append(context.get_time())
+                warnings.warn(
+                    f"gripper: lost what it held at t={context.get_time():.2f} s (OBJ 2 -> 3: the"
+                    " fingers closed to the requested width); counted as a drop",
+                    stacklevel=1,
+                )
             w = s["width"]
         discrete_state.get_mutable_vector(self._state).SetFromVector([w, (w - old[0]) / self._period])
         return EventStatus.Succeeded()
@@ -463,6 +478,7 @@ class RobotiqDriver(LeafSystem):
             except MogError as e:
                 return self._fail(str(e))
             self._sent.update(pos=pos, at=self._sent["at"] if self._sent["at"] is not None else self._clock())
+            self._holding = False
         self._sent["width"] = w
         return EventStatus.Succeeded()
 
@@ -527,8 +543,6 @@ class ReplayCamera(LeafSystem):
         if None in found:
             if fallback_intrinsics is None:
                 raise MogError(f"{folder}: frames without intrinsics (record them with record_frame)")
-            import warnings
-
             warnings.warn(
                 f"{folder}: frames recorded without intrinsics; using the scenario camera's "
                 f"{tuple(round(v, 3) for v in fallback_intrinsics)}",
@@ -617,8 +631,6 @@ class RealSenseCamera(LeafSystem):
             )
         self.intrinsics = _intrinsics((k.fx, k.fy, k.ppx, k.ppy), "RealSense")
         if any(abs(c) > 1e-6 for c in k.coeffs):
-            import warnings
-
             warnings.warn(
                 f"RealSense: the colour stream has lens distortion {list(k.coeffs)}, which perception "
                 "does not undo: expect position errors toward the image corners",

@@ -206,9 +206,14 @@ class RobotiqClient:
         self.set(("ACT", 1))
         deadline = time.monotonic() + self.activation_timeout
         while (sta := self.get("STA")) != 3:
+            # A minor or major fault (0x08 and up; below are priority faults of commands)
+            # stops the activation: said at once, not after the timeout.
+            if (code := self.get("FLT")) >= 0x08:
+                raise RobotiqError(f"{fault_text(code)} during activation (STA {sta})")
             if time.monotonic() > deadline:
                 raise RobotiqError(
                     f"activation did not complete within {self.activation_timeout:g} s (STA {sta}, expected 3)"
+                    + (f"; {fault_text(code)}" if code else "")
                 )
             time.sleep(self.POLL)
         self.check_fault("after activation")

@@ -25,6 +25,9 @@ MAX_FILE_BYTES = 16 * 2**20  # a scene, shapes or scenario file is a few kB
 #: A shape is a tabletop object: its vertices within this distance of its origin, its height
 #: at most this (m). Larger numbers are typos, and break the physics.
 MAX_SHAPE_SIZE = 0.5
+#: ... and at least this tall (m): thinner is a sheet, not a prism the fingers can close on,
+#: and its contact is ill-conditioned.
+MIN_SHAPE_HEIGHT = 0.002
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,8 @@ def make_shape(name: str, spec: dict) -> Shape:
     if float(np.abs(verts).max()) > MAX_SHAPE_SIZE:
         raise MogError(f"shape '{name}': its vertices must lie within {MAX_SHAPE_SIZE} m of its origin")
     height = _positive(spec["height"], f"shape '{name}': height", MAX_SHAPE_SIZE)
+    if height < MIN_SHAPE_HEIGHT:
+        raise MogError(f"shape '{name}': height must be at least {MIN_SHAPE_HEIGHT} m, got {height:g}")
     density = _positive(spec.get("density", 1000.0), f"shape '{name}': density", 1e5)
     color = spec.get("color", [0.6, 0.6, 0.6, 1.0])
     try:

@@ -24,6 +24,9 @@ MAX_TABLE = 100.0
 MAX_YAW = 1e3
 #: Two objects may overlap by at most this area (m^2, = 1 mm^2) before a scene is refused.
 DEFAULT_OVERLAP_TOL = 1e-6
+#: Objects in one scene at most: several times what a tabletop holds, few enough that the
+#: pairwise overlap check stays within seconds.
+MAX_OBJECTS = 500
 
 
 @dataclass(frozen=True)
@@ -182,6 +185,8 @@ class Scene:
         objs_raw = data.get("objects")
         if not isinstance(objs_raw, list) or not objs_raw:
             raise MogError(f"{where}: 'objects' must be a list of at least one object")
+        if len(objs_raw) > MAX_OBJECTS:
+            raise MogError(f"{where}: {len(objs_raw)} objects; a table holds at most {MAX_OBJECTS}")
         objects = []
         for i, o in enumerate(objs_raw):
             if not isinstance(o, dict) or "shape" not in o or "pose" not in o:

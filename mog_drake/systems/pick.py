@@ -146,6 +146,12 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     }
 
 
+def _dropped(a: dict) -> bool:
+    if a.get("carried") is not None:
+        return (a.get("picked") or 0) < len(a["carried"])
+    return bool(a.get("lost"))
+
+
 @dataclass
 class PickRun:
     objects: int
@@ -194,6 +200,9 @@ class PickRun:
             ),
             "perception_time_s": self.perception_time,
             "retakes": self.retakes,
+            # attempts that lost something on the way to the bin: in simulation, lifted objects
+            # not in the bin; on hardware, the gripper's hold lost (OBJ 2 -> 3)
+            "dropped": sum(_dropped(a) for a in self.attempts),
             "pushes": len(self.pushes),
             "push_time_s": self.push_time,
             "push_gain": self.push_gain(),
@@ -350,6 +359,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None
+                # What the gripper lost while this attempt carried it (hardware: OBJ 2 -> 3).
+                lost = getattr(handles.gripper, "lost", ())
+                a["lost"] = sum(a["start"] <= t <= a["end"] for t in lost)
             run.attempts.append(a)
             done_attempts += 1
             if on_attempt:
@@ -416,6 +428,8 @@ def attempt_line(k: int, a: dict) -> str:
         line += f"  -> lifted {len(a['carried'])}"
     if a.get("picked") is not None:
         line += f", {a['picked']} in the bin ({a['in_bin']} in all)"
+    if a.get("lost"):
+        line += "  -> dropped in transit (the gripper lost its hold)"
     return line + f"  [planning {a['planning_time']:.2f} s, {a['physics_checks']} physics checks]"
 
 

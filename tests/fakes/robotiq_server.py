@@ -15,7 +15,7 @@ mode: "ok" behaves as above; "malformed" answers garbage to GET; "slow" waits ``
 each reply; "drop" closes the connection on the first request; "fault" reports ``FLT 14``
 (0x0E, overcurrent) once a move starts; "ignore" acks a move's SET but acts on none of it (PRE, POS and
 OBJ do not change); "stuck" starts a move that never ends (OBJ stays 0); "never_active"
-never completes activation; "garbage" answers every request with an endless stream of bytes
+never completes activation (as does a gripper constructed with a ``fault`` of 0x08 and up); "garbage" answers every request with an endless stream of bytes
 and no newline.
 """
 
@@ -35,12 +35,16 @@ class FakeRobotiq:
         move_time: float = 0.05,
         object_at: int | None = None,
         active: bool = False,
+        fault: int = 0,
     ):
         self.mode, self.delay = mode, delay
         self.activation_time, self.move_time, self.object_at = activation_time, move_time, object_at
         self.vars = {"ACT": 0, "GTO": 0, "POS": 0, "PRE": 0, "SPE": 0, "FOR": 0, "OBJ": 3, "STA": 0, "FLT": 0}
         if active:
             self.vars.update(ACT=1, STA=3)
+        # A fault already latched (FLT): a minor or major one (0x08 and up) keeps an
+        # activation from completing until the fault is cleared (manual, gFLT).
+        self.vars["FLT"] = fault
         self.request = 0  # the last SET POS
         self._act_at: float | None = None
         self._move: tuple[float, int] | None = None  # (started, target POS)
@@ -67,6 +71,12 @@ class FakeRobotiq:
         self._stop.set()
         self._thread.join(timeout=2)
         self._srv.close()
+
+    def lose(self) -> None:
+        """What the held object slipping out does (manual, OBJ: "fingers are at requested
+        position"): the fingers, no longer blocked, finish the close to the request; OBJ 3."""
+        with self._lock:
+            self.vars["POS"], self.vars["OBJ"] = self.request, 3
 
     def _serve(self):
         while not self._stop.is_set():
@@ -120,7 +130,7 @@ class FakeRobotiq:
         """The gripper's own progress since the last request."""
         now = time.monotonic()
         v = self.vars
-        if self._act_at is not None and self.mode != "never_active":
+        if self._act_at is not None and self.mode != "never_active" and v["FLT"] < 0x08:
             v["STA"] = 3 if now - self._act_at >= self.activation_time else 1
         if self._move is not None and self.mode != "stuck":
             started, target = self._move
