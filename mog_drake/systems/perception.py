@@ -154,17 +154,18 @@ class PerceptionSystem(LeafSystem):
             job = None
         last = job.counter if job is not None else cur.counter
         if job is None and req > max(last, 0):  # requests count from 1
-            depth = np.array(self._depth.Eval(context).data[:, :, 0])  # copies: jobs outlive events
             # The table at rest first: a frame `still_dt` after the last one that differs from
             # it no more than the change check allows (an object pushed by the grasp may still
             # be sliding or rocking when the arm has left it). After `still_max` s, go on.
+            # Rendered only at those moments: a frame costs milliseconds of CPU.
             pending = slot.pending
+            if pending is not None and pending[0] == req and t - pending[2] < self._still[0] - 1e-9:
+                return
+            depth = np.array(self._depth.Eval(context).data[:, :, 0])  # copies: jobs outlive events
             if pending is None or pending[0] != req:
                 state.get_mutable_abstract_state(self._job).set_value(_Slot(pending=(req, depth, t, t)))
                 return
             _, depth0, t0, t_first = pending
-            if t - t0 < self._still[0] - 1e-9:
-                return
             n = self._perceiver.changed_pixels(
                 depth0, depth, self._X_WC, self._K, self._change[1], still=True
             )

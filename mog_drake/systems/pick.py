@@ -301,7 +301,7 @@ def run_pick(
             parts["planner"].shutdown()
 
 
-SLEEP_PERIOD = 0.05  # s of simulated time between two looks at which objects may sleep
+SLEEP_PERIOD = 0.01  # s of simulated time between two looks at which objects may sleep
 
 
 def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
