@@ -121,11 +121,15 @@ def scene_from_spec(spec) -> Scene:
     raise MogError(f"scene must be one of !ClutteredScene, !RowScene, !SceneFile, got {spec!r}")
 
 
+ARM_LEVER = 1.1  # m: the UR5's reach (0.85 m) plus the gripper's length, with room
+
+
 class StationHandles:
     """What tests and the simulation driver may need beyond the ports."""
 
-    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics):
+    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, arm_accel=50.0):
         self.camera_intrinsics = camera_intrinsics
+        self.arm_accel = arm_accel  # m/s^2, bound on any point of the arm's acceleration
         self.plant = plant
         self.scene_graph = scene_graph
         self.robot = robot
@@ -139,7 +143,9 @@ class StationHandles:
 
         gripper = [self.plant.GetBodyByName(n, self.robot) for n in ("palm", "left_finger", "right_finger")]
         radii = {i: self.scene.shape(i).reach for i in self.bodies}
-        return Sleep(self.plant, self.scene_graph, self.bodies, gripper, radii, period=period)
+        return Sleep(
+            self.plant, self.scene_graph, self.bodies, gripper, radii, period=period, accel=self.arm_accel
+        )
 
 
 # Drake's VTK renderer draws pixel (u, v) from the ray through (u + 0.5, v + 0.5) of its
@@ -293,8 +299,12 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         )
     diagram = builder.Build()
     diagram.set_name("station")
+    # Any arm point's acceleration: tangential (joint acceleration) and centripetal (joint
+    # speed squared) on a lever of at most ARM_LEVER, four times over for the PD's tracking.
+    r = scenario.robot
+    accel = 4.0 * (r.max_joint_acceleration + r.max_joint_speed**2) * ARM_LEVER
     return diagram, StationHandles(
-        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera)
+        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), accel
     )
 
 

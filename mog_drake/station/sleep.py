@@ -41,8 +41,8 @@ class Sleep:
         bodies: dict,
         gripper_bodies: list,
         radii: dict,
-        period: float = 0.05,
-        arm_speed: float = 2.0,
+        period: float = 0.01,
+        accel: float = 50.0,
         finger_reach: float = 0.06,
         rest_speed: float = 0.002,
         rest_turn: float = 0.05,
@@ -55,7 +55,9 @@ class Sleep:
         self.gripper_bodies = gripper_bodies
         self.radii = radii  # object id -> bounding sphere radius about its body origin (m)
         self.period = period
-        self.reach = 2 * period * arm_speed + finger_reach
+        self.horizon = 2 * period  # the look ahead of every reach: two updates
+        self.accel = accel  # m/s^2, bound on any gripper point's acceleration
+        self.finger_reach = finger_reach
         self.rest_speed, self.rest_turn, self.rest_time = rest_speed, rest_turn, rest_time
         self.margin, self.table_height = margin, table_height
         self.asleep: dict[int, object] = {}  # object id -> its collision filter's id
@@ -78,6 +80,16 @@ class Sleep:
             V = plant.EvalBodySpatialVelocityInWorld(pc, self.bodies[i])
             v[k], w[k] = np.linalg.norm(V.translational()), np.linalg.norm(V.rotational())
         grip = np.array([plant.EvalBodyPoseInWorld(pc, b).translation() for b in self.gripper_bodies])
+        # How far the gripper can reach by the next look: its fastest point (a finger's length
+        # from a body origin) now, and what its acceleration bound can add, plus that length.
+        speed = 0.0
+        for b in self.gripper_bodies:
+            V = plant.EvalBodySpatialVelocityInWorld(pc, b)
+            speed = max(
+                speed, np.linalg.norm(V.translational()) + self.finger_reach * np.linalg.norm(V.rotational())
+            )
+        H = self.horizon
+        self.reach = speed * H + 0.5 * self.accel * H * H + self.finger_reach
         r = np.array([self.radii[i] for i in ids])
         moving = [k for k in range(len(ids)) if v[k] > self.rest_speed]
 
@@ -85,7 +97,7 @@ class Sleep:
             if np.min(np.linalg.norm(grip - p[k], axis=1)) < r[k] + scale * self.reach:
                 return True
             for m in moving:
-                gap = r[m] + r[k] + scale * (2 * self.period * v[m] + self.margin)
+                gap = r[m] + r[k] + scale * (self.horizon * v[m] + self.margin)
                 if m != k and np.linalg.norm(p[m] - p[k]) < gap:
                     return True
             return False
