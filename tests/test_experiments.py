@@ -1,5 +1,6 @@
 import json
 import math
+import time
 
 import pytest
 
@@ -423,3 +424,45 @@ def test_the_arms_wait_is_split_by_what_the_decision_had_from_the_lookahead():
     assert w["robot_time_s"] == 20.0
     text = picking_eval.wait_text([run], ["mog"])
     assert "the arm waited 4 s (22.5 % of robot time)" in text
+
+
+def test_the_cell_bench_times_each_systems_callbacks_apart():
+    """`bench station`'s split: a system whose update evaluates another system's output is
+    charged its own CPU, not the other's (each burns a known amount of CPU)."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+    from mog_drake.experiments.bench.cell import _Timers
+
+    def burn(seconds):
+        end = time.thread_time() + seconds
+        while time.thread_time() < end:
+            pass
+
+    class Source(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self.DeclareVectorOutputPort("y", 1, self._calc)
+
+        def _calc(self, context, output):
+            burn(0.02)
+            output.SetFromVector([1.0])
+
+    class Reader(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self._u = self.DeclareVectorInputPort("u", 1)
+            self.DeclarePeriodicPublishEvent(0.1, 0.0, self._read)
+
+        def _read(self, context):
+            burn(0.01)
+            self._u.Eval(context)
+
+    timers = _Timers()
+    with timers.installed():
+        builder = DiagramBuilder()
+        src, reader = builder.AddSystem(Source()), builder.AddSystem(Reader())
+    builder.Connect(src.get_output_port(), reader.get_input_port())
+    Simulator(builder.Build()).AdvanceTo(0.45)  # 5 publishes
+    assert timers.total["Source"] == pytest.approx(0.10, rel=0.3)
+    assert timers.total["Reader"] == pytest.approx(0.05, rel=0.3)

@@ -4,8 +4,9 @@
 
 * geometry: the conditions and the candidate filter (`bench.geometry`)
 * verifier: the picking check against the reference check, pair by pair (`bench.physics`)
-* perception, station, replanning, rest: rendered tables, the station's step, replanning,
-  objects at rest on the station's table (`bench.station`)
+* perception, station, replanning, rest: rendered tables, the station's step (and where a
+  pick run's CPU goes, `bench.cell`), replanning, objects at rest on the station's table
+  (`bench.station`)
 """
 
 from __future__ import annotations
@@ -54,9 +55,12 @@ def run(
         )
         return {what: rows}, text
     elif what == "station":
+        from mog_drake.experiments.bench.cell import bench_cell, cell_text
         from mog_drake.experiments.bench.station import bench_station
 
         rows = bench_station(seed)
+        cell = bench_cell(seed)
+        return {what: rows, "cell": cell}, format_table(rows) + "\n" + cell_text(cell)
     elif what == "replanning":
         from mog_drake.experiments.bench.station import bench_replanning
 
