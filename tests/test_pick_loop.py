@@ -10,6 +10,7 @@ import pytest
 from conftest import make_scene
 from pydrake.systems.analysis import Simulator
 
+from mog_drake.planning.board import CPU, WALL
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenario import Scenario, SceneFile
 from mog_drake.systems.jobs import LatencyConfig, Worker
@@ -125,8 +126,9 @@ def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
     """A job that sleeps 0.3 s costs no CPU time: with the ``cpu`` clock it is visible as soon
     as it is done; one that computes 0.2 s is not visible 0.1 s of simulated time after its
     request, and is 0.25 s after it (the collecting event waits for it, as in simulation)."""
-    assert LatencyConfig("cpu").clock == "cpu" and LatencyConfig().clock == "wall"
-    worker = Worker("test", "cpu")
+
+    assert LatencyConfig("cpu").clock is CPU and LatencyConfig().clock is WALL
+    worker = Worker("test", CPU)
     try:
         sleeper = worker.submit(time.sleep, 0.3, t_request=0.0, counter=1)
         assert sleeper.visible(0.05, None, block=True)
@@ -137,7 +139,7 @@ def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
         assert spinner.result() == "spun" and 0.2 <= spinner.cpu_time() < 0.25
     finally:
         worker.shutdown()
-    wall = Worker("test", "wall")
+    wall = Worker("test", WALL)
     try:
         sleeper = wall.submit(time.sleep, 0.3, t_request=0.0, counter=1)
         assert not sleeper.visible(0.05, None, block=True)
@@ -337,8 +339,8 @@ def test_the_lookaheads_verdicts_are_visible_at_its_cpu_time_and_a_wait_is_laten
     time plus its wait."""
     from mog_drake.planning.board import Board, BoardReader
 
-    a = Worker("ahead", "cpu")
-    board = Board(0.0, "cpu")
+    a = Worker("ahead", CPU)
+    board = Board(0.0, CPU)
 
     def lookahead():
         board.start()
@@ -348,7 +350,7 @@ def test_the_lookaheads_verdicts_are_visible_at_its_cpu_time_and_a_wait_is_laten
 
     try:
         a.submit(lookahead, t_request=0.0, counter=1).future.result()
-        late = BoardReader(board, 0.1, "cpu")
+        late = BoardReader(board, 0.1, CPU)
         assert late.new() == []
         _spin(0.1)
         assert late.new() == []

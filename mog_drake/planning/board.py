@@ -17,7 +17,7 @@ A lookahead sent while the one before it still runs on its thread starts no earl
 that one ended (``after``).
 
 Simulated time: the lookahead's point is its request plus the time it has run on its clock
-(its thread's CPU time or the wall clock: `thread_clock`), the decision's its request plus
+(its thread's CPU time or the wall clock: `JobClock`), the decision's its request plus
 the time it has run on its own clock plus its waits. Nothing is seen before that point. A
 verdict or claim posted later on the wall clock than the decision looks, though early enough
 in simulated time, is missed, and the decision plans that group itself. So reading the board
@@ -32,29 +32,54 @@ import time
 from collections.abc import Callable
 
 
-def thread_clock(clock: str | Callable[[], float]) -> Callable[[], float]:
-    """The calling thread's clock ``clock`` as a function any thread can read: "wall" (the
-    wall clock) or "cpu" (this thread's CPU time); a function is returned as it is (tests)."""
-    if callable(clock):
+class JobClock:
+    """The clock a job's latency is measured on, built once (`LatencyConfig.clock`) and passed
+    down: ``WALL`` (the wall clock; a job's time counts from its request, queueing included)
+    or ``CPU`` (the CPU time of the job's own thread, from its start). A plain function of
+    time is a clock too (`as_clock`, for tests), counted from the job's start as ``CPU``."""
+
+    def __init__(self, name: str, from_request: bool, reader: Callable[[], Callable[[], float]], timer):
+        self.name = name
+        self.from_request = from_request  # the job's time counts from its request, not its start
+        self._reader = reader
+        self.timer = timer  # read on the job's own thread (the planner's decision budget)
+
+    def reader(self) -> Callable[[], float]:
+        """The calling thread's time on this clock, as a function any thread can read."""
+        return self._reader()
+
+    def __repr__(self) -> str:
+        return f"JobClock({self.name})"
+
+
+def _this_threads_cpu() -> Callable[[], float]:
+    clock_id = time.pthread_getcpuclockid(threading.get_ident())
+    return lambda: time.clock_gettime(clock_id)
+
+
+WALL = JobClock("wall", True, lambda: time.perf_counter, time.perf_counter)
+CPU = JobClock("cpu", False, _this_threads_cpu, time.thread_time)
+
+
+def as_clock(clock: JobClock | Callable[[], float]) -> JobClock:
+    """``clock``, or a function of time as a clock (tests)."""
+    if isinstance(clock, JobClock):
         return clock
-    if clock == "cpu":
-        clock_id = time.pthread_getcpuclockid(threading.get_ident())
-        return lambda: time.clock_gettime(clock_id)
-    return time.perf_counter
+    return JobClock("custom", False, lambda: clock, clock)
 
 
 class Board:
     """What a planning thread (the poster) shares while it runs: its claims (the group it is
     planning, from when to when) and its verdicts, each stamped with the simulated time it
-    happened: ``t_request`` plus the poster's time on ``clock`` since `start` ("cpu", "wall",
+    happened: ``t_request`` plus the poster's time on ``clock`` since `start` (a `JobClock`,
     or a function, for tests). The poster calls `start`, then `claim` / `post`,
     then `finish`; any other thread reads it through a `BoardReader`."""
 
     def __init__(
-        self, t_request: float, clock: str | Callable[[], float] = "wall", after: Board | None = None
+        self, t_request: float, clock: JobClock | Callable[[], float] = WALL, after: Board | None = None
     ):
         self.t_request = t_request
-        self._clock = clock
+        self._clock = as_clock(clock)
         self._after = after  # a board whose poster holds this one's thread until it finishes
         self.end: float | None = None  # the simulated time the poster finished
         self._now: Callable[[], float] | None = None
@@ -64,20 +89,20 @@ class Board:
         # (from, to or None while open, group, around): what the poster planned when.
         self._claims: list[list] = []
         self._posted: set[int] = set()  # ids of the entries posted
-        if clock == "wall":  # a wall-clock latency counts from the request (queueing included)
+        if self._clock.from_request:  # e.g. the wall clock: queueing included
             self.start()
 
     def start(self) -> float:
-        """On the poster's thread, as it starts: its clock starts here ("wall": at the
-        request), and its simulated time no earlier than the end of ``after``'s poster, which
+        """On the poster's thread, as it starts: its clock starts here (at the request on a
+        clock that counts from it), and its simulated time no earlier than the end of ``after``'s poster, which
         ran on the same thread before it (on the wall clock, time from the request counts that
         already). Returns how much later than ``t_request`` it starts (s), once: 0 after."""
         if self._now is not None:
             return 0.0
-        self._now = thread_clock(self._clock)
+        self._now = self._clock.reader()
         self._c0 = self._now()
         t0 = self.t_request
-        if self._after is not None and self._after.end is not None and self._clock != "wall":
+        if self._after is not None and self._after.end is not None and not self._clock.from_request:
             self.t_request = max(t0, self._after.end)
         return self.t_request - t0
 
@@ -127,10 +152,10 @@ class BoardReader:
     starts now, on this thread, timed on ``clock`` (as `Board`). ``waited``: simulated time
     it has spent waiting for the poster, beyond its own clock."""
 
-    def __init__(self, board: Board, t_request: float, clock: str | Callable[[], float] = "wall"):
+    def __init__(self, board: Board, t_request: float, clock: JobClock | Callable[[], float] = WALL):
         self.board = board
         self.t_request = t_request
-        self._now = thread_clock(clock)
+        self._now = as_clock(clock).reader()
         self._c0 = self._now()
         self.waited = 0.0
         self.got: list = []  # every verdict `new` returned, in order

@@ -32,7 +32,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 
-from mog_drake.planning.board import thread_clock
+from mog_drake.planning.board import CPU, WALL, JobClock
 
 LATENCY_MODES = ("measured", "cpu", "fixed")
 
@@ -54,9 +54,10 @@ class LatencyConfig:
         return None
 
     @property
-    def clock(self) -> str:
-        """What a measured latency is: "cpu" (the job thread's CPU time) or "wall"."""
-        return "cpu" if self.mode == "cpu" else "wall"
+    def clock(self) -> JobClock:
+        """What a measured latency is counted on: the job thread's CPU time (``cpu``), else
+        the wall clock."""
+        return CPU if self.mode == "cpu" else WALL
 
 
 class Job:
@@ -70,7 +71,7 @@ class Job:
         counter: int,
         t_submit: float,
         info=None,
-        clock: str = "wall",
+        clock: JobClock = WALL,
         started: dict | None = None,
     ):
         self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
@@ -87,7 +88,7 @@ class Job:
         """Time the job has run so far on its clock (s): wall time since it was submitted, or
         its thread's CPU time since it started, plus how late it started
         (`Worker.submit`'s ``delay``)."""
-        if self.clock == "wall":
+        if self.clock.from_request:
             return time.perf_counter() - self.t_submit
         if "now" not in self._started:
             return 0.0
@@ -120,7 +121,7 @@ class Job:
             try:
                 self.future.result(timeout=max(ahead, 1e-3))
             except FutureTimeout:
-                if self.clock == "wall":
+                if self.clock.from_request:
                     return False
                 # CPU time runs slower than the wall clock when the job shares a core: look again.
         return self.latency() <= waited + 1e-9
@@ -147,7 +148,7 @@ class Job:
     def latency(self) -> float:
         """The job's measured latency on its clock, its waits included (s); it must be
         done."""
-        return (self.wall_time() if self.clock == "wall" else self.clock_time()) + self.waited()
+        return (self.wall_time() if self.clock.from_request else self.clock_time()) + self.waited()
 
     def result(self):
         return self.future.result()[0]
@@ -156,7 +157,7 @@ class Job:
 class Worker:
     """One worker thread running one system's jobs in order."""
 
-    def __init__(self, name: str, clock: str = "wall"):
+    def __init__(self, name: str, clock: JobClock = WALL):
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
@@ -175,15 +176,13 @@ class Worker:
         started: dict = {}
 
         def run():
-            cpu = thread_clock("cpu")
-            now = cpu if self._clock == "cpu" else thread_clock(self._clock)
+            cpu, now = CPU.reader(), self._clock.reader()
             cpu0, t0 = cpu(), now()
             late = delay() if delay is not None else 0.0
             started.update(now=now, t0=t0, delay=late)
             out = fn(*args)
             wall, c1, t1 = time.perf_counter() - t_submit, cpu(), now()
-            spent = c1 - cpu0 if now is cpu else t1 - t0
-            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), spent
+            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), t1 - t0
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

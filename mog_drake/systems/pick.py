@@ -36,7 +36,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
         keep_out=scenario.keep_out(),
     )
     # decision_budget_s is counted on the planning thread's clock (its CPU time, or the wall's).
-    planner.clock = time.thread_time if scenario.latency.clock == "cpu" else time.perf_counter
+    planner.clock = scenario.latency.clock.timer
     return planner
 
 
