@@ -17,7 +17,7 @@ def make_scene(objs, group=None, **kw) -> Scene:
 @pytest.fixture(scope="session")
 def replay_dir(tmp_path_factory):
     """One RGB-D frame of a 3-object table, rendered by the simulated station."""
-    from mog_drake.hardware.drivers import record_frame
+    from mog_drake.hardware.cameras import record_frame
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station import MakeStation, rendered_intrinsics
 

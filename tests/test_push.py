@@ -266,7 +266,7 @@ def test_push_motions_stay_inside_the_hardware_safety_limits():
     """Every joint command of a push (down, along, up) passes the hardware station's
     SafetyMonitor with its default limits, and along the line the fingertips stay at grasp
     height; a push sent 5 cm below the table is refused by the same check."""
-    from mog_drake.hardware.drivers import SafetyLimits, SafetyMonitor
+    from mog_drake.hardware.safety import SafetyLimits, SafetyMonitor
     from mog_drake.scenario import Scenario
     from mog_drake.systems.motion import ArmMotion
 

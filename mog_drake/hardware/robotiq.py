@@ -21,9 +21,15 @@ from __future__ import annotations
 import math
 import socket
 import time
+import warnings
 from dataclasses import dataclass
 
+import numpy as np
+from pydrake.systems.framework import EventStatus, LeafSystem
+
 from mog_drake.errors import HardwareFault, MogError
+from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.hardware.safety import CommandLog, FaultLatch
 
 DEFAULT_PORT = 63352
 MAX_REPLY = 64  # bytes: the longest real reply is a few characters
@@ -261,3 +267,99 @@ class RobotiqClient:
             "fault": flt,
             "pre": pre,
         }
+
+
+class RobotiqDriver(LeafSystem):
+    """gripper.position (inner opening, m) -> moves; status -> gripper.state_measured.
+
+    A changed width is sent as one move (`RobotiqClient.command`, which reads FLT first); each
+    poll reads POS, OBJ, FLT and PRE. A fault code, a command the gripper did not take (PRE)
+    or a move that does not end within ``move_timeout`` latches a fault. The deadline is the
+    move's, not the command's: a new command sent before the move before it ended keeps that
+    move's deadline, so a gripper that never ends a move faults however often it is told to
+    move. After any fault the jaws never open again: whatever is held stays held.
+    """
+
+    def __init__(
+        self,
+        client,
+        faults: FaultLatch,
+        force: float,
+        speed: float = 0.15,
+        period: float = 0.05,
+        dry_run: bool = False,
+        log: CommandLog | None = None,
+        initial_width: float = OPEN_WIDTH,
+        move_timeout: float = 5.0,
+        clock=time.monotonic,
+    ):
+        super().__init__()
+        self._client, self._faults = client, faults
+        self._force, self._speed, self._dry = force, speed, dry_run
+        self._log = log or CommandLog()
+        self._move_timeout, self._clock = move_timeout, clock
+        self._cmd = self.DeclareVectorInputPort("gripper.position", 1)
+        self._state = self.DeclareDiscreteState(np.array([initial_width, 0.0]))
+        # The last command sent, and when the move under way began (None: no move under way).
+        self._sent = {"width": None, "pos": None, "at": None}
+        self._holding = False  # the last move ended on an object (OBJ 2) and none followed
+        self.lost: list[float] = []  # when a held object was lost (simulated time, s)
+        self.DeclareStateOutputPort("gripper.state_measured", self._state)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
+        self._period = period
+
+    def _fail(self, reason: str):
+        self._faults.trip(reason if reason.startswith("gripper:") else f"gripper: {reason}")
+        return EventStatus.Failed(None, self._faults.reason)
+
+    def _poll(self, context, discrete_state):
+        old = context.get_discrete_state(self._state).value()
+        if self._dry:
+            w = self._sent["width"] if self._sent["width"] is not None else old[0]
+        else:
+            try:
+                s = self._client.status()
+            except MogError as e:
+                return self._fail(str(e))
+            if s["fault"]:
+                return self._fail(fault_text(s["fault"]))
+            if self._sent["pos"] is not None and self._sent["at"] is not None:
+                done, problem = move_state(
+                    s, self._sent["pos"], self._clock() - self._sent["at"], self._move_timeout
+                )
+                if problem:
+                    return self._fail(problem)
+                if done:
+                    self._sent["at"] = None  # the next command begins a new move
+                    self._holding = s["object"] == 2
+            if self._holding and self._sent["at"] is None and s["object"] == 3:
+                self._holding = False
+                self.lost.append(context.get_time())
+                warnings.warn(
+                    f"gripper: lost what it held at t={context.get_time():.2f} s (OBJ 2 -> 3: the"
+                    " fingers closed to the requested width); counted as a drop",
+                    stacklevel=1,
+                )
+            w = s["width"]
+        discrete_state.get_mutable_vector(self._state).SetFromVector([w, (w - old[0]) / self._period])
+        return EventStatus.Succeeded()
+
+    def _send(self, context):
+        w = float(self._cmd.Eval(context)[0])
+        if self._sent["width"] is not None and abs(w - self._sent["width"]) < 1e-3:
+            return EventStatus.Succeeded()
+        if self._faults and (self._sent["width"] is None or w > self._sent["width"]):
+            # After a fault the jaws never open: whatever is held stays held.
+            return EventStatus.Succeeded()
+        if self._dry:
+            self._log.write("robotiq", context.get_time(), width=round(w, 4), force=self._force)
+        else:
+            try:
+                pos = self._client.command(w, self._force, self._speed)
+            except MogError as e:
+                return self._fail(str(e))
+            self._sent.update(pos=pos, at=self._sent["at"] if self._sent["at"] is not None else self._clock())
+            self._holding = False
+        self._sent["width"] = w
+        return EventStatus.Succeeded()

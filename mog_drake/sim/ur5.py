@@ -67,6 +67,34 @@ def forward_kinematics(q) -> np.ndarray:
     return T
 
 
+#: The UR5's DH frames 1..6, by the joint they carry.
+LINK_FRAMES = ("shoulder", "elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
+
+
+class ArmFrames:
+    """The arm's forward kinematics in the table frame, for checks and views: ``frames(q)``
+    gives the origins of the shoulder, elbow, wrists, flange and palm, and the two
+    fingertips (the plates' centres at ``finger_span``, ``finger_depth`` below the palm)."""
+
+    def __init__(self, base_xyyaw, finger_depth: float = 0.040, finger_span: float = 0.085):
+        self._base = base_transform(base_xyyaw).GetAsMatrix4()
+        self._palm = palm_in_flange().GetAsMatrix4()
+        h = finger_span / 2
+        self._tips = np.array([[-h, 0.0, -finger_depth, 1.0], [h, 0.0, -finger_depth, 1.0]]).T
+
+    def __call__(self, q) -> dict[str, np.ndarray]:
+        T = self._base.copy()
+        out = {}
+        for i, name in enumerate(LINK_FRAMES):
+            T = T @ dh_transform(q[i], DH_D[i], DH_A[i], DH_ALPHA[i])
+            out[name] = T[:3, 3].copy()
+        palm = T @ self._palm
+        out["palm"] = palm[:3, 3]
+        tips = (palm @ self._tips)[:3].T
+        out["left fingertip"], out["right fingertip"] = tips[0], tips[1]
+        return out
+
+
 def _origin(xyz, rpy) -> str:
     return (
         f'<origin xyz="{xyz[0]:.6g} {xyz[1]:.6g} {xyz[2]:.6g}" rpy="{rpy[0]:.9g} {rpy[1]:.9g} {rpy[2]:.9g}"/>'

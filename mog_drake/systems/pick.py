@@ -42,11 +42,9 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
 
 def arm_view(scenario: Scenario, intrinsics) -> ArmView:
     """When the arm hides nothing of the perceived table from the camera (`ArmView`)."""
-    from mog_drake.hardware.drivers import SafetyLimits, SafetyMonitor
+    from mog_drake.sim.ur5 import ArmFrames
 
-    frames = SafetyMonitor(
-        SafetyLimits(), scenario.robot.base, finger_depth=scenario.gripper.finger_height
-    ).frames
+    frames = ArmFrames(scenario.robot.base, finger_depth=scenario.gripper.finger_height)
     bx, by, _ = scenario.robot.base
     return ArmView(
         frames,
