@@ -387,7 +387,7 @@ def test_warnings_are_one_line_and_numpy_runtime_warnings_none(monkeypatch, caps
         warnings.warn("frames recorded\n  without intrinsics", stacklevel=1)
         return 0 if np.isnan(np.mean([])) else 1  # numpy's "Mean of empty slice"
 
-    monkeypatch.setattr(cli, "cmd_shapes", noisy)
+    monkeypatch.setattr(cli.geometry, "cmd_shapes", noisy)
     code, out, err = run(capsys, "shapes")
     assert code == 0 and err == "mog-drake: warning: frames recorded without intrinsics\n", err
 
