@@ -26,15 +26,13 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
+from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
 from mog_drake.errors import MogError
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import check_yaml, read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.sim.verifier import VerifierConfig
-from mog_drake.systems.controller import ControllerConfig
-from mog_drake.systems.jobs import LATENCY_MODES, LatencyConfig
-from mog_drake.systems.motion import MotionConfig
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
 # m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their

@@ -68,3 +68,12 @@ def test_no_import_cycle_anywhere_in_the_package():
         if m not in state:
             visit(m, [m])
     assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_the_scenario_imports_nothing_from_the_systems():
+    """Configuration is data: `mog_drake.scenario` and `mog_drake.config` lie below the
+    systems they configure, never above."""
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    for name in ("mog_drake.scenario", "mog_drake.config"):
+        upward = sorted(m for m in _imports(files[name], set(files)) if m.startswith("mog_drake.systems"))
+        assert upward == [], (name, upward)

@@ -10,10 +10,11 @@ import pytest
 from conftest import make_scene
 from pydrake.systems.analysis import Simulator
 
+from mog_drake.config import LatencyConfig
 from mog_drake.planning.board import CPU, WALL
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenario import Scenario, SceneFile
-from mog_drake.systems.jobs import LatencyConfig, Worker
+from mog_drake.systems.jobs import Worker
 from mog_drake.systems.pick import MakePickDiagram
 
 

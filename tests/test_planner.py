@@ -300,7 +300,7 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
-    from mog_drake.systems.jobs import LatencyConfig
+    from mog_drake.config import LatencyConfig
     from mog_drake.systems.perception import Perceived
     from mog_drake.systems.planner import PlannerSystem
 

@@ -238,8 +238,8 @@ def test_the_controller_pushes_on_the_station_then_grasps_the_pair(tmp_path, the
     """push-mog end to end on the simulated station: the two bars 45 mm apart are pushed
     together (one push, the jaws closed at grasp height), then lifted together by one grasp:
     at once, where the planner's physics check left them, or after a new image."""
+    from mog_drake.config import LatencyConfig
     from mog_drake.scenario import Scenario, SceneFile
-    from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.pick import run_pick
 
     make_scene(BARS).save(tmp_path / "bars.yaml")

@@ -588,10 +588,10 @@ def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import Simulator
 
+    from mog_drake.config import LatencyConfig
     from mog_drake.planning.planner import GraspPlanner
     from mog_drake.planning.protocol import GraspResult
     from mog_drake.scenes import Scene, default_library
-    from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.perception import Perceived
     from mog_drake.systems.planner import PlannerSystem
 
@@ -699,7 +699,8 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
 
 
 def test_carrying_is_gentler_than_moving_empty():
-    from mog_drake.systems.motion import ArmMotion, MotionConfig
+    from mog_drake.config import MotionConfig
+    from mog_drake.systems.motion import ArmMotion
 
     sc = Scenario()
     plans = {

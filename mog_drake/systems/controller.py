@@ -7,6 +7,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from mog_drake.config import ControllerConfig
 from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.geometry.polygon import convex_hull_ccw
@@ -45,19 +46,6 @@ class ControllerState(_Immutable):
     # "now"}), and the robot time they took (s).
     pushes: list = field(default_factory=list)
     push_time: float = 0.0
-
-
-@dataclass
-class ControllerConfig:
-    """The controller's timing (s)."""
-
-    # Between the application systems' updates (perception, planner, controller).
-    period: float = 0.01
-    # The jaws close for as long as a full close takes at the gripper's speed, plus this.
-    close_margin: float = 0.2
-    open_time: float = 0.35  # the jaws open over the bin
-    settle_time: float = 0.2  # at the start, before the first image
-    max_unreachable: int = 3  # unreachable grasps in a row that end the run
 
 
 class ControllerSystem(LeafSystem):

@@ -30,34 +30,8 @@ visible at the first update after it is ready and its latency has passed.
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass
 
 from mog_drake.planning.board import CPU, WALL, JobClock
-
-LATENCY_MODES = ("measured", "cpu", "fixed")
-
-
-@dataclass
-class LatencyConfig:
-    """How long perception and planning take in simulated time: ``measured`` (each job's own
-    wall time), ``cpu`` (each job's CPU time) or ``fixed`` (``perception_s`` and
-    ``planning_s`` for every job)."""
-
-    mode: str = "measured"
-    perception_s: float = 0.3
-    planning_s: float = 2.0
-
-    def of(self, stage: str) -> float | None:
-        """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
-        if self.mode == "fixed":
-            return getattr(self, f"{stage}_s")
-        return None
-
-    @property
-    def clock(self) -> JobClock:
-        """What a measured latency is counted on: the job thread's CPU time (``cpu``), else
-        the wall clock."""
-        return CPU if self.mode == "cpu" else WALL
 
 
 class Job:
@@ -176,13 +150,15 @@ class Worker:
         started: dict = {}
 
         def run():
-            cpu, now = CPU.reader(), self._clock.reader()
+            cpu = CPU.reader()
+            now = cpu if self._clock is CPU else self._clock.reader()  # one reading on CPU
             cpu0, t0 = cpu(), now()
             late = delay() if delay is not None else 0.0
             started.update(now=now, t0=t0, delay=late)
             out = fn(*args)
-            wall, c1, t1 = time.perf_counter() - t_submit, cpu(), now()
-            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), t1 - t0
+            wall, c1 = time.perf_counter() - t_submit, cpu()
+            spent = c1 - cpu0 if now is cpu else now() - t0
+            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), spent
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

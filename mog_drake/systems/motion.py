@@ -6,8 +6,6 @@ The gripper pose is its palm frame: z up, x along the closing axis, fingertips
 joined by a cubic through them), so the open jaws come down beside the objects, never across.
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
@@ -18,20 +16,10 @@ from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.solvers import Solve
 from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomial
 
+from mog_drake.config import MotionConfig
 from mog_drake.errors import MogError
 from mog_drake.geometry.push import ease, push_duration
 from mog_drake.sim.ur5 import URDF_PATH, base_transform, palm_in_flange
-
-
-@dataclass
-class MotionConfig:
-    hover: float = 0.12  # m, palm height above the grasp height before descending
-    lift: float = 0.15  # m
-    bin_clearance: float = 0.12  # m, fingertips above the bin rim
-    levels: int = 5  # IK points on a vertical line
-    # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
-    # joint speed and acceleration limits: objects carried by friction stay put.
-    carry_scale: float = 0.5
 
 
 class ArmMotion:

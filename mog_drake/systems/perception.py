@@ -21,8 +21,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
+from mog_drake.config import LatencyConfig
 from mog_drake.perception import Perceiver
-from mog_drake.systems.jobs import Job, LatencyConfig, Worker
+from mog_drake.systems.jobs import Job, Worker
 
 
 class _Immutable:

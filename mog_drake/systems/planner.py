@@ -11,10 +11,11 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from mog_drake.config import LatencyConfig
 from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
-from mog_drake.systems.jobs import LatencyConfig, Worker
+from mog_drake.systems.jobs import Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
 

@@ -28,9 +28,9 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
     from pydrake.geometry import HydroelasticContactRepresentation
     from pydrake.systems.analysis import Simulator
 
+    from mog_drake.config import LatencyConfig
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station.scoring import BinRetirement
-    from mog_drake.systems.jobs import LatencyConfig
     from mog_drake.systems.pick import SLEEP_PERIOD, MakePickDiagram
 
     sc = Scenario(scene=ClutteredScene(seed=seed), latency=LatencyConfig(mode="fixed"))

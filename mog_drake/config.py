@@ -1,0 +1,57 @@
+"""Settings of the application systems (the scenario's ``controller``, ``motion`` and
+``latency`` sections), as data: the systems that use them and `mog_drake.scenario` import
+them from here. (No ``from __future__ import annotations``: Drake's YAML reads the field
+types.)"""
+
+from dataclasses import dataclass
+
+from mog_drake.planning.board import CPU, WALL, JobClock
+
+LATENCY_MODES = ("measured", "cpu", "fixed")
+
+
+@dataclass
+class LatencyConfig:
+    """How long perception and planning take in simulated time: ``measured`` (each job's own
+    wall time), ``cpu`` (each job's CPU time) or ``fixed`` (``perception_s`` and
+    ``planning_s`` for every job)."""
+
+    mode: str = "measured"
+    perception_s: float = 0.3
+    planning_s: float = 2.0
+
+    def of(self, stage: str) -> float | None:
+        """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
+        if self.mode == "fixed":
+            return getattr(self, f"{stage}_s")
+        return None
+
+    @property
+    def clock(self) -> JobClock:
+        """What a measured latency is counted on: the job thread's CPU time (``cpu``), else
+        the wall clock."""
+        return CPU if self.mode == "cpu" else WALL
+
+
+@dataclass
+class ControllerConfig:
+    """The controller's timing (s)."""
+
+    # Between the application systems' updates (perception, planner, controller).
+    period: float = 0.01
+    # The jaws close for as long as a full close takes at the gripper's speed, plus this.
+    close_margin: float = 0.2
+    open_time: float = 0.35  # the jaws open over the bin
+    settle_time: float = 0.2  # at the start, before the first image
+    max_unreachable: int = 3  # unreachable grasps in a row that end the run
+
+
+@dataclass
+class MotionConfig:
+    hover: float = 0.12  # m, palm height above the grasp height before descending
+    lift: float = 0.15  # m
+    bin_clearance: float = 0.12  # m, fingertips above the bin rim
+    levels: int = 5  # IK points on a vertical line
+    # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
+    # joint speed and acceleration limits: objects carried by friction stay put.
+    carry_scale: float = 0.5
