@@ -151,7 +151,7 @@ class StationHandles:
 # Drake's VTK renderer draws pixel (u, v) from the ray through (u + 0.5, v + 0.5) of its
 # CameraInfo model, which puts pixel centres at integer coordinates: rendered tables perceived
 # with CameraInfo's own principal point came out 0.5 pixel (0.6 mm) off along both image axes
-# on every table (tests/test_station.py measures it).
+# on every table (tests/station/test_station.py measures it).
 RENDERED_PIXEL_OFFSET = 0.5
 
 

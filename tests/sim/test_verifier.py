@@ -275,7 +275,7 @@ def _picking_and_reference():
     from mog_drake.scenario import Scenario, load_scenario
 
     sc = Scenario()
-    ref = load_scenario(str(Path(__file__).resolve().parents[1] / "models" / "reference_check.yaml"))
+    ref = load_scenario(str(Path(__file__).resolve().parents[2] / "models" / "reference_check.yaml"))
     return DrakeVerifier(sc.verifier, physics=sc.gripper), DrakeVerifier(ref.verifier, physics=ref.gripper)
 
 
