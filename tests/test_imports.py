@@ -14,6 +14,7 @@ def test_geometry_planning_scenes_and_perception_never_load_pydrake():
         "import sys\n"
         "import mog_drake.geometry, mog_drake.scenes, mog_drake.perception\n"
         "import mog_drake.planning.config, mog_drake.planning.picking, mog_drake.planning.planner\n"
+        "import mog_drake.planning.lookahead, mog_drake.planning.pushing, mog_drake.planning.decision\n"
         "import mog_drake.planning.protocol\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] == 'pydrake'))\n"
     )

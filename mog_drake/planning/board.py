@@ -2,7 +2,7 @@
 simulated time (Drake-free).
 
 The lookahead plans the next decision on the table as it will be without the objects the arm
-is grasping (`mog_drake.planning.picking.lookahead`). When the next image comes before it is
+is grasping (`mog_drake.planning.lookahead`). When the next image comes before it is
 done, the decision planned from that image (on the planner's thread) and the lookahead (on its
 own) run side by side over largely the same groups. The lookahead writes on a `Board`, as it
 goes: the group it is planning now (its claim) and each verdict once it has one. The decision
@@ -116,7 +116,7 @@ class Board:
         return self.t_request + self._now() - self._c0
 
     def claim(self, group, around) -> None:
-        """The poster plans ``group`` (its ids) with ``around`` (see `picking._around`) now."""
+        """The poster plans ``group`` (its ids) with ``around`` (see `decision._around`) now."""
         with self._cond:
             s = self.stamp()
             self._close(s)

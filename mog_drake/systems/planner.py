@@ -14,7 +14,9 @@ from pydrake.systems.framework import LeafSystem
 from mog_drake.config import LatencyConfig
 from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.picking import PickDecision, lookahead, next_pick, tally_misses
+from mog_drake.planning.decision import PickDecision
+from mog_drake.planning.lookahead import lookahead
+from mog_drake.planning.picking import next_pick, tally_misses
 from mog_drake.systems.jobs import Worker
 from mog_drake.systems.perception import Perceived, _Immutable, _Slot
 
@@ -64,7 +66,7 @@ class PlannerSystem(LeafSystem):
 
     With ``ahead_planner`` (its own physics check: a built plant is one thread's) and
     ``spec.lookahead``, once a grasp is decided the next decision is planned on a second
-    thread while the arm moves (`mog_drake.planning.picking.lookahead`)."""
+    thread while the arm moves (`mog_drake.planning.lookahead`)."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
     # Grasps of unrecognised blobs in a row before the run ends on them: each failed one moves

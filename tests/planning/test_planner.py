@@ -459,7 +459,8 @@ def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_
     from dataclasses import replace
 
     from mog_drake.planning.config import PlannerSpec
-    from mog_drake.planning.picking import lookahead, next_pick
+    from mog_drake.planning.lookahead import lookahead
+    from mog_drake.planning.picking import next_pick
 
     cube = ("small_yellow_cube", 0.0, 0.0, 0.0)
     hexagon = ("large_hexagon", 0.15, 0.1, 0.3)
@@ -680,7 +681,8 @@ def test_the_lookahead_writes_each_group_it_simulates_and_each_verdict_on_its_bo
     it is simulated, each verdict from the end of its simulation, and the memory it returns,
     each entry once."""
     from mog_drake.planning.board import Board, BoardReader
-    from mog_drake.planning.picking import PickDecision, lookahead
+    from mog_drake.planning.decision import PickDecision
+    from mog_drake.planning.lookahead import lookahead
 
     scene = make_scene(
         [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]

@@ -178,7 +178,8 @@ def test_a_push_the_lookahead_found_to_pay_is_replayed_with_no_physics_while_its
     other order, the push is replayed in the new ids (Alg. 1's lone grasp, planned first for
     the bar the lookahead did not, is checked). With one bar 1 cm away from where it was,
     the push is simulated again."""
-    from mog_drake.planning.picking import PaidPush, lookahead
+    from mog_drake.planning.decision import PaidPush
+    from mog_drake.planning.lookahead import lookahead
 
     pair = [("thick_bar", 0.15, -0.009, 0.0), ("thick_bar", 0.15, 0.009, 0.0)]
     scene = make_scene([*pair, *BARS])

@@ -216,7 +216,7 @@ def _controller_with_fixed_inputs(with_check=False):
 def test_controller_state_machine_with_fixed_inputs():
     """Fed a fixed decision, the controller asks, moves, closes, lifts, goes to the bin, opens
     and returns, then asks again."""
-    from mog_drake.planning.picking import PickDecision
+    from mog_drake.planning.decision import PickDecision
     from mog_drake.systems.planner import Decision
 
     c, ctx, decision, sim = _controller_with_fixed_inputs()
@@ -251,7 +251,7 @@ def test_a_changed_table_drops_the_decision_and_takes_a_new_image():
     image is never waited for: a new image is asked for at once."""
     from pydrake.common.value import AbstractValue
 
-    from mog_drake.planning.picking import PickDecision
+    from mog_drake.planning.decision import PickDecision
     from mog_drake.systems.perception import Checked
     from mog_drake.systems.planner import Decision
 
@@ -282,7 +282,7 @@ def test_a_changed_table_drops_the_decision_and_takes_a_new_image():
 def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():
     """A grasp the arm cannot reach is recorded and the controller observes again (the planner
     will not repeat it); only three unreachable grasps in a row end the run."""
-    from mog_drake.planning.picking import PickDecision
+    from mog_drake.planning.decision import PickDecision
     from mog_drake.systems.planner import Decision
 
     c, ctx, decision, sim = _controller_with_fixed_inputs()

@@ -1,0 +1,96 @@
+"""Planning ahead (an extension of Alg. 1): while the arm carries a grasp to the bin, the next
+decision is planned on the table as it will be without the grasped objects, writing each
+verdict on a board (`mog_drake.planning.board`) that the real decision reads."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from mog_drake.planning.board import Board
+from mog_drake.planning.config import PlannerSpec
+from mog_drake.planning.decision import MEMORY_SIZE, FailedGroup, FailedPush, PaidPush, PickDecision, _around
+from mog_drake.planning.picking import next_pick
+from mog_drake.planning.planner import GraspPlanner
+from mog_drake.planning.pushing import _paid_push
+from mog_drake.scenes import Scene
+
+
+def lookahead(
+    scene,
+    decision: PickDecision,
+    planner: GraspPlanner,
+    spec: PlannerSpec,
+    rng=None,
+    avoid=(),
+    grasp_unrecognised: bool = True,
+    pushes_left: int = 0,
+    board: Board | None = None,
+) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
+    """What the next decision can reuse, planned before its image (an extension; see
+    `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
+    without the objects ``decision`` grasps, as if they were gone and nothing else had moved,
+    plus the grasp it found there. In the next image, each group whose surroundings are
+    where they were is replayed from it with no physics (its failure, or its grasp); the
+    groups the grasp disturbed are planned again.
+
+    push-mog, with ``pushes_left`` above 0: the pushes are considered too, as the decision
+    would. The pushes that did not pay join the memory (`FailedPush`), and a push that paid
+    with its grasp (`PaidPush`), which the next decision replays with no physics if its
+    objects are where they were: a push decision simulates pushes and their grasps (6-10 s of
+    CPU), which the lookahead does while the arm moves.
+
+    board: where the next decision, if its image comes first, reads this plan as it goes (see
+    `mog_drake.planning.board`): each group as it is simulated, each verdict, and at the end
+    the rest of the memory. It is finished however this returns."""
+    if board is not None:
+        board.start()
+    try:
+        memory = _lookahead(
+            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board
+        )
+        if board is not None:
+            for entry in memory:
+                board.post(entry)  # those posted already are not posted twice
+        return memory
+    finally:
+        if board is not None:
+            board.finish()
+
+
+def without_grasped(scene, decision: PickDecision) -> Scene:
+    """``scene`` without the objects ``decision``'s grasp takes (its group and what the
+    physics check lifted), as the lookahead plans it."""
+    gone = set(decision.group) | set(decision.expected)
+    return replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
+
+
+def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board):
+    rest = without_grasped(scene, decision)
+    if len(rest) == 0:
+        return ()
+    ahead = next_pick(
+        rest,
+        planner,
+        spec,
+        rng,
+        avoid,
+        decision.failures,
+        grasp_unrecognised,
+        pushes_left=pushes_left,
+        post=board,
+    )
+    memory = list(ahead.failures)
+    found = ahead.plans[-1] if ahead.plans else None  # Alg. 1's grasp (a push's too)
+    if (
+        ahead.status in ("grasp", "push")
+        and not (ahead.partial or ahead.unrecognised)
+        and found is not None
+        and found.found
+    ):
+        entry = ahead.found_entry
+        if entry is None or entry.result is not found:
+            entry = FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found)
+        memory.insert(0, entry)
+    if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
+        memory.insert(0, paid)
+    return tuple(memory[:MEMORY_SIZE])
