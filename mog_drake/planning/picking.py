@@ -8,6 +8,34 @@
 
 The outer loop (observe, execute, repeat until the table is clear or time is up) is the
 Planner and Controller systems' job; this module decides the next grasp for one observation.
+
+Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`:
+
+* grouping "conditions": groups formed from the grasps that satisfy the necessary
+  conditions (`condition_groups`) instead of CreateObjGroups' radius.
+* partial lifts (mog): a candidate the physics check saw lift only k objects of a larger
+  group is a verified grasp of those k. Once every group left has at most k objects it is
+  taken instead of planning them, and rather than giving up when no group succeeds.
+* avoid: the robot's last few grasps are not tried again, so a grasp the check trusts and
+  the world keeps failing is not repeated attempt after attempt.
+* failures (memory): a group found to have no grasp is not planned again while every object
+  within its reach lies where it did; its remembered plan, partial lift included, stands in.
+* last resort: when no group has a grasp within the planner's cap on physics checks, each is
+  planned again with up to LAST_RESORT_CHECKS more (LAST_RESORT_TOTAL in all) before the
+  decision gives up ("no_grasp").
+* unrecognised blobs: once no library object is left, what perception could not recognise
+  (a prism knocked onto its side) is planned as prisms of its outline and top height
+  (`unrecognised_scene`); without a grasp the status is "unrecognised".
+* push-mog: grasps are planned for Alg. 1's groups and for groups of objects that meet within
+  ADJACENT_GAP (a push leaves two bars end to end, farther apart than the group radius), and
+  a push is taken when worth more (`mog_drake.planning.pushing`).
+* exclude: no group holding an object given up on (`tally_misses`) is planned; when they are
+  all that is left, the status is "gave_up".
+* late / post: a lookahead's board (`mog_drake.planning.board`). Before each group the
+  verdicts it has posted by then in simulated time join the memory; a group it is planning
+  then is waited for, not planned twice. A plan with ``post`` writes its claims and verdicts.
+* decision budget: once the thread has spent ``decision_budget_s`` on the decision (on
+  ``planner.clock``) and holds a verified partial lift, the partial lift is taken.
 """
 
 from __future__ import annotations
@@ -37,7 +65,7 @@ from mog_drake.planning.decision import (
     _same_group,
     _unknown,
 )
-from mog_drake.planning.planner import GraspPlanner
+from mog_drake.planning.planner import GraspPlanner, PlanResult
 from mog_drake.planning.pushing import _consider_pushes
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
@@ -71,103 +99,27 @@ def next_pick(
     late: BoardReader | None = None,
     post: Board | None = None,
 ) -> PickDecision:
-    """The next grasp for the objects of ``scene``.
-
-    ``spec`` (`PlannerSpec`, its defaults when None) says how; the grasp planner is given.
-
-    mode "mog": Alg. 1, the largest groups first. ``grouping`` "radius" forms the groups as the
-    paper does (`create_obj_groups` with ``group_radius``); "conditions" (an extension) forms
-    them from the grasps that satisfy the necessary conditions (`condition_groups`).
-    mode "sog": the paper's single-object baseline, the same planner restricted to one object
-    chosen at random (objects are tried in a random order until one has a grasp).
-
-    partial_lifts (mog only; an extension of Alg. 1): a candidate that the physics check saw
-    lift only k objects of a larger group is still a verified grasp of those k. Once every
-    group left to try has at most k objects, that grasp is taken instead of planning them, and
-    it is taken rather than giving up when no group succeeds.
-
-    avoid: grasps not to try again (the robot's last few), so that a grasp the physics check
-    trusts but the world keeps failing is not repeated attempt after attempt.
-
-    failures (an extension; None: off): the previous decision's ``failures``. A group found
-    to have no grasp is not planned again while every object within its reach lies where it
-    did (its physics checks would replay the same verdicts); its remembered plan, partial lift
-    included, stands in. Picking one group leaves most of the table untouched, so without
-    this the same failing groups are simulated again before every attempt.
-
-    last_resort (an extension): when no group has a grasp within the planner's cap on physics
-    checks per group, each is planned again, in the same order, with up to LAST_RESORT_CHECKS
-    more checks (LAST_RESORT_TOTAL in all) before the decision gives up (a run ends on
-    "no_grasp").
-
-    grasp_unrecognised (an extension): once no library object is left, the blobs perception
-    could not recognise (a prism knocked onto its side) are planned as prisms of their outline
-    and top height (``unrecognised_scene``); without a grasp for them the status is
-    "unrecognised".
-
-    mode "push-mog" (an extension): Alg. 1's grasp, or a consolidating push when that is
-    worth more (see `_consider_pushes`; at most ``pushes_left`` more). Its grasps are
-    planned for Alg. 1's groups and for the groups of objects that meet within
-    ``ADJACENT_GAP`` (``adjacent``, `adjacent_groups`): a push leaves two bars end to end,
-    farther apart than the group radius.
-
-    exclude: objects given up on (`tally_misses`): no group holding one is planned; when they
-    are all that is left, the status is "gave_up".
-
-    late (with ``failures``; an extension): the board of a lookahead that was not done when
-    the image came (`mog_drake.planning.board`). Before each group, the verdicts it has posted
-    by then (in simulated time) join ``failures``' for the groups still to plan; a group it
-    is planning then is not planned here: the decision waits for its verdict.
-
-    post (with ``failures``; an extension): the board this plan writes on (the lookahead's):
-    each group it simulates (its claim), then each verdict.
-
-    decision_budget_s (mog, with partial_lifts; an extension): once this thread has spent
-    that much time on the decision, on ``planner.clock`` (its CPU time, or the wall
-    clock's), and holds a verified partial lift, no more groups are planned and no more
-    candidates simulated: the partial lift is taken."""
+    """The next grasp for the objects of ``scene``, as ``spec`` (`PlannerSpec`, its defaults
+    when None) says, with the given grasp planner: mode "mog" is Alg. 1 (the largest groups
+    first), "sog" the paper's single-object baseline (objects in a random order until one has
+    a grasp), "push-mog" Alg. 1 or a consolidating push worth more (at most ``pushes_left``
+    more). The extensions, each described in the module's docstring: ``avoid`` (grasps not
+    to try again), ``failures`` (the previous decision's memory; None: off),
+    ``grasp_unrecognised``, ``adjacent`` (push-mog's groups of objects that meet),
+    ``exclude`` (objects given up on: `tally_misses`), ``late`` and ``post`` (a late
+    lookahead's board to read, the board to write), and the spec's ``partial_lifts``,
+    ``last_resort`` and ``decision_budget_s``."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
-        d = next_pick(
-            scene,
-            planner,
-            replace(spec, mode="mog"),
-            rng,
-            avoid,
-            failures,
-            grasp_unrecognised,
-            adjacent=ADJACENT_GAP,
-            exclude=exclude,
-            late=late,
-            post=post,
+        return _push_mog(
+            scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post
         )
-        if (
-            pushes_left > 0
-            and spec.push_checks > 0
-            and not d.unrecognised
-            and d.status in ("grasp", "no_grasp")
-        ):
-            memory = failures
-            if failures is not None and late is not None:
-                d.merged |= bool(late.new())
-                memory = tuple(failures) + tuple(_unknown(late.got, failures))
-            _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
-        return d
     mode, last_resort = spec.mode, spec.last_resort
     t0 = time.perf_counter()
     deadline = planner.clock() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
     if len(scene) == 0:
-        # Something the perception could not recognise is not a clear table.
-        blobs = unrecognised_scene(scene) if grasp_unrecognised else None
-        if not blobs:
-            status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
-            return PickDecision(status, planning_time=time.perf_counter() - t0)
-        d = next_pick(blobs, planner, spec, rng, avoid, failures)
-        d.unrecognised = True
-        if d.status != "grasp":
-            d.status = "unrecognised"
-        return d
+        return _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0)
     if mode == "mog":
         groups = _mog_groups(scene, planner, spec, adjacent)
     else:
@@ -190,25 +142,10 @@ def next_pick(
             break
         if best is not None and deadline is not None and planner.clock() > deadline:
             break  # past the budget: the verified partial lift in hand
-        res = None
+        res = around = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            while True:
-                if late is not None and (got := late.new()):
-                    pending += _unknown(got, failures, pending)
-                    decision.merged = True
-                met, res = _recall(pending, group, around, avoid)
-                # The lookahead is planning this group: wait for its verdict, not plan it twice.
-                if (
-                    met
-                    or late is None
-                    or (c := late.claimed()) is None
-                    or _same_group(*c, group, around) is None
-                ):
-                    break
-                late.wait()
-            if res is not None:
-                decision.remembered += 1
+            res = _remembered(group, around, pending, failures, avoid, late, decision)
         if res is None:
             if post is not None and failures is not None:
                 post.claim(group, around)
@@ -243,6 +180,64 @@ def next_pick(
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
+
+
+def _push_mog(
+    scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post
+):
+    """push-mog: Alg. 1's decision on its groups and the adjacent ones, then the pushes worth
+    more than it (`_consider_pushes`)."""
+    d = next_pick(
+        scene,
+        planner,
+        replace(spec, mode="mog"),
+        rng,
+        avoid,
+        failures,
+        grasp_unrecognised,
+        adjacent=ADJACENT_GAP,
+        exclude=exclude,
+        late=late,
+        post=post,
+    )
+    if pushes_left > 0 and spec.push_checks > 0 and not d.unrecognised and d.status in ("grasp", "no_grasp"):
+        memory = failures
+        if failures is not None and late is not None:
+            d.merged |= bool(late.new())
+            memory = tuple(failures) + tuple(_unknown(late.got, failures))
+        _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
+    return d
+
+
+def _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0) -> PickDecision:
+    """No library object left: a clear table, or the unrecognised blobs planned as prisms.
+    (Something the perception could not recognise is not a clear table.)"""
+    blobs = unrecognised_scene(scene) if grasp_unrecognised else None
+    if not blobs:
+        status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
+        return PickDecision(status, planning_time=time.perf_counter() - t0)
+    d = next_pick(blobs, planner, spec, rng, avoid, failures)
+    d.unrecognised = True
+    if d.status != "grasp":
+        d.status = "unrecognised"
+    return d
+
+
+def _remembered(group, around, pending: list, failures, avoid, late, decision) -> PlanResult | None:
+    """The remembered verdict on ``group`` (``pending`` grows by what a late lookahead's board
+    shows by now), or None: plan it. While the lookahead is planning this very group, its
+    verdict is waited for, not planned twice."""
+    while True:
+        if late is not None and (got := late.new()):
+            pending += _unknown(got, failures, pending)
+            decision.merged = True
+        met, res = _recall(pending, group, around, avoid)
+        if met or late is None or (c := late.claimed()) is None or _same_group(*c, group, around) is None:
+            break
+        late.wait()
+    if res is not None:
+        decision.remembered += 1
+    return res
 
 
 def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float) -> list[tuple[int, ...]]:
