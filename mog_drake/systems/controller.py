@@ -126,19 +126,7 @@ class ControllerSystem(LeafSystem):
         dt = t - s.t_mode
         if s.mode == "done":
             return
-        # The interval since the last update, by what the arm did in it.
-        step, new.t_last = t - s.t_last, t
-        if s.t_first is not None:
-            if s.mode in self.MOTIONS or s.mode in ("close", "open", "push_open"):
-                new.robot_time += step
-                if s.mode.startswith("push"):
-                    new.push_time += step
-            elif s.mode in ("wait", "check"):
-                waiting_for = s.check if s.mode == "check" else s.counter
-                if self._scene.Eval(context).counter < waiting_for:
-                    new.wait_perception += step
-                else:
-                    new.wait_planning += step
+        self._count_time(context, s, new, t)
         if s.mode == "push_home" and s.requested == s.counter and self._image_now(context, s, holding=False):
             new.requested = s.counter + 1  # the pushed table, as soon as the arm is out of view
             new.pushes[-1] = {**new.pushes[-1], "next_image": [s.mode, round(dt, 3)]}
@@ -173,60 +161,10 @@ class ControllerSystem(LeafSystem):
                 elif dec.status != "grasp":
                     new.mode, new.finished = "done", dec.status
                 else:
-                    try:
-                        new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
-                    except MogError as e:
-                        # Observe again: the planner does not repeat its last few grasps.
-                        self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e)
-                    else:
-                        new.mode, new.t_mode, new.unreachable = "approach", t, 0
-                        new.attempts.append(
-                            {
-                                "start": t,
-                                "group": list(dec.group),
-                                "shapes": list(dec.shapes),
-                                "grasp": dec.grasp.tolist(),
-                                "planning_time": dec.planning_time,
-                                "planning_cpu": d.cpu_time,
-                                "objects_seen": d.objects_seen,
-                                "physics_checks": dec.physics_checks,
-                                "expected": list(dec.expected),
-                                # Groups replayed from memory, and whether the lookahead's
-                                # memory was in time for this plan (see PlannerSystem).
-                                "remembered": dec.remembered,
-                                "lookahead": d.lookahead,
-                                # Simulated time it waited for the verdicts of the lookahead
-                                # (its board), and the verdicts it took.
-                                "waited": dec.waited,
-                                "from_board": dec.from_board,
-                                **({"unrecognised": True} if dec.unrecognised else {}),
-                            }
-                        )
+                    self._start_grasp(new, s, d, t)
         elif s.mode in self.MOTIONS:
-            traj = s.plan[s.mode]
-            if dt >= traj.end_time() + 0.05:
-                new.q_hold = traj.value(traj.end_time()).ravel()
-                new.mode, new.t_mode = self.MOTIONS[s.mode], t
-                if s.mode == "approach":
-                    new.gripper = 0.0
-                if s.mode == "push_up" and s.plan.get("then") is not None:
-                    new.mode, new.gripper = "push_open", self._open  # open above the objects
-                    new.pushes[-1] = {**new.pushes[-1], "end": t}
-                if s.mode == "push_home":  # open the jaws, and a new image of the pushed table
-                    new.gripper = self._open
-                    new.pushes[-1] = {**new.pushes[-1], "end": t}
-                    new.plan = None
-                    new.counter = new.requested = (
-                        new.requested if new.requested > s.counter else s.counter + 1
-                    )
-                if s.mode == "home":
-                    new.attempts[-1] = {**new.attempts[-1], "end": t}
-                    new.plan = None
-                    if new.requested == s.counter:  # no image on the way: one here
-                        new.mode = "wait"
-                        new.counter = new.requested = s.counter + 1
-                    else:
-                        new.mode, new.check = "check", new.requested
+            if dt >= s.plan[s.mode].end_time() + 0.05:
+                self._motion_done(new, s, t)
         elif s.mode == "close" and dt >= self._close_time:
             new.attempts[-1] = {**new.attempts[-1], "held_width": float(self._g.Eval(context)[0])}
             new.mode, new.t_mode = "lift", t
@@ -239,6 +177,79 @@ class ControllerSystem(LeafSystem):
         if new.mode == "done" and s.mode != "done":
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
+
+    def _count_time(self, context, s: ControllerState, new: ControllerState, t: float) -> None:
+        """The interval since the last update, by what the arm did in it."""
+        step, new.t_last = t - s.t_last, t
+        if s.t_first is None:
+            return
+        if s.mode in self.MOTIONS or s.mode in ("close", "open", "push_open"):
+            new.robot_time += step
+            if s.mode.startswith("push"):
+                new.push_time += step
+        elif s.mode in ("wait", "check"):
+            waiting_for = s.check if s.mode == "check" else s.counter
+            if self._scene.Eval(context).counter < waiting_for:
+                new.wait_perception += step
+            else:
+                new.wait_planning += step
+
+    def _start_grasp(self, new: ControllerState, s: ControllerState, d, t: float) -> None:
+        """Decision ``d``'s grasp: its motions planned and an attempt begun, or skipped if
+        the arm cannot reach it (observe again: the planner does not repeat its last grasps)."""
+        dec = d.decision
+        try:
+            new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
+        except MogError as e:
+            self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e)
+            return
+        new.mode, new.t_mode, new.unreachable = "approach", t, 0
+        new.attempts.append(
+            {
+                "start": t,
+                "group": list(dec.group),
+                "shapes": list(dec.shapes),
+                "grasp": dec.grasp.tolist(),
+                "planning_time": dec.planning_time,
+                "planning_cpu": d.cpu_time,
+                "objects_seen": d.objects_seen,
+                "physics_checks": dec.physics_checks,
+                "expected": list(dec.expected),
+                # Groups replayed from memory, and whether the lookahead's memory was in time
+                # for this plan (see PlannerSystem).
+                "remembered": dec.remembered,
+                "lookahead": d.lookahead,
+                # Simulated time it waited for the verdicts of the lookahead (its board), and
+                # the verdicts it took.
+                "waited": dec.waited,
+                "from_board": dec.from_board,
+                **({"unrecognised": True} if dec.unrecognised else {}),
+            }
+        )
+
+    def _motion_done(self, new: ControllerState, s: ControllerState, t: float) -> None:
+        """The motion of mode ``s.mode`` has ended: on to the next mode."""
+        traj = s.plan[s.mode]
+        new.q_hold = traj.value(traj.end_time()).ravel()
+        new.mode, new.t_mode = self.MOTIONS[s.mode], t
+        if s.mode == "approach":
+            new.gripper = 0.0
+        if s.mode == "push_up" and s.plan.get("then") is not None:
+            new.mode, new.gripper = "push_open", self._open  # open above the objects
+            new.pushes[-1] = {**new.pushes[-1], "end": t}
+        if s.mode == "push_home":  # open the jaws, and a new image of the pushed table
+            new.gripper = self._open
+            new.pushes[-1] = {**new.pushes[-1], "end": t}
+            new.plan = None
+            new.counter = new.requested = new.requested if new.requested > s.counter else s.counter + 1
+        if s.mode == "home":
+            new.attempts[-1] = {**new.attempts[-1], "end": t}
+            new.plan = None
+            if new.requested == s.counter:  # no image on the way: one here
+                new.mode = "wait"
+                new.counter = new.requested = s.counter + 1
+            else:
+                new.mode, new.check = "check", new.requested
 
     def _skip(self, new: ControllerState, s: ControllerState, d, t: float, kind: str, what, e) -> None:
         """Skips decision ``d``'s grasp or push (``kind``), which the arm cannot reach: logged,
