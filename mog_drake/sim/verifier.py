@@ -396,106 +396,18 @@ class DrakeVerifier:
         return result
 
     def _run(self, sim: _GroupSim, group, grasp, t0: float) -> GraspResult:
-        cfg, plant, pc = self.config, sim.plant, sim.plant_context
-        sim.context.SetTimeStateAndParametersFrom(sim.default_context)
-        g = self.gripper
-        half = g.opening / 2  # the jaws start open
-        sim.script.set_grasp(sim.script_context, grasp)
-        for i, body in sim.bodies.items():
-            plant.SetFloatingBaseBodyPoseInWorldFrame(pc, body, pose_to_transform(*sim.poses[i]))
-        j = sim.gripper.joints
-        z0 = sim.script.z_grasp
-        for joint, q in zip((j[0], j[1], j[2], j[4], j[5]), (grasp[0], grasp[1], z0, -half, half)):
-            joint.set_translation(pc, q)
-        j[3].set_angle(pc, grasp[2])  # yaw
-        timeline = cfg.timeline(g, self.physics)
-        t_end = timeline["end"]
-        cpu_deadline = time.thread_time() + cfg.cpu_budget
-        status = {"error": "", "early": ""}
-        group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
-        z_joint = j[2]
-        finger_h = self.physics.finger_height
-        settle = {"samples": [], "next": timeline["lift1"]}
-        watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
-        lifted_z = cfg.lifted_height
-
-        def settled(ctx, t) -> bool:
-            """Whether, over the last settle_window of the hold, the fastest lifted object's
-            speed averaged under settle_speed (a mean: contact jitter spikes for a step or
-            two). Objects below the lifted height are left out: with the jaws still in the
-            air, one pushed aside on the table can slide on but never count as lifted."""
-            if t < settle["next"]:
-                return False
-            settle["next"] = t + self.SETTLE_PERIOD
-            fastest = 0.0
-            for body, r in watched:
-                if plant.EvalBodyPoseInWorld(ctx, body).translation()[2] <= lifted_z:
-                    continue  # on the table: nothing in the hold can lift it now
-                V = plant.EvalBodySpatialVelocityInWorld(ctx, body)
-                fastest = max(fastest, np.linalg.norm(V.translational()) + r * np.linalg.norm(V.rotational()))
-            s = settle["samples"]
-            s.append((t, fastest))
-            while len(s) > 1 and t - s[1][0] >= cfg.settle_window - 1e-9:
-                s.pop(0)
-            return t - s[0][0] >= cfg.settle_window - 1e-9 and np.mean([v for _, v in s]) < cfg.settle_speed
-
-        still = {"samples": [], "next": timeline["lift1"]}
-
-        def held_still(ctx, t) -> bool:
-            """Whether, over the last hold_window of the hold, no object above the lifted
-            height moved more than hold_drift (sampled every SETTLE_PERIOD)."""
-            p = np.array([plant.EvalBodyPoseInWorld(ctx, body).translation() for body, _ in watched])
-            s = still["samples"]
-            s.append((t, p))
-            while len(s) > 1 and t - s[1][0] >= cfg.hold_window - 1e-9:
-                s.pop(0)
-            if t - s[0][0] < cfg.hold_window - 1e-9:
-                return False
-            up = p[:, 2] > lifted_z
-            return bool(np.all(np.linalg.norm(p - s[0][1], axis=1)[up] < cfg.hold_drift))
-
-        look = {"next": 0.0}
-
-        def monitor(root_context):
-            t = root_context.get_time()
-            if t < look["next"] - 1e-9:  # Python looks at the state every SETTLE_PERIOD
-                return EventStatus.Succeeded()
-            look["next"] = t + self.SETTLE_PERIOD
-            ctx = plant.GetMyContextFromRoot(root_context)
-            q = plant.GetPositions(ctx)
-            if not np.all(np.isfinite(q)):
-                status["error"] = f"non-finite state at t = {t:.3f} s"
-                return EventStatus.Failed(None, status["error"])
-            if time.thread_time() > cpu_deadline:
-                status["error"] = f"CPU budget of {cfg.cpu_budget:g} s exceeded at t = {t:.3f} s"
-                return EventStatus.Failed(None, status["error"])
-            if cfg.hold_window > 0 and t >= still["next"] - 1e-9 and held_still(ctx, t):
-                return EventStatus.ReachedTermination(None, "every lifted object held still in the hold")
-            if cfg.early_exit and t > timeline["lift0"]:
-                finger_bottom = z_joint.get_translation(ctx) - finger_h
-                left = [
-                    i
-                    for i, body, top in group_bodies
-                    if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top
-                ]
-                k = cfg.report_partial_lifts
-                if left and (k <= 0 or len(group_bodies) - len(left) < k):
-                    status["early"] = f"object(s) {left} left on the table"
-                    return EventStatus.ReachedTermination(None, status["early"])
-            if cfg.settle_window > 0 and settled(ctx, t):
-                return EventStatus.ReachedTermination(None, "every object settled in the hold")
-            return EventStatus.Succeeded()
-
-        sim.simulator.set_monitor(monitor)
+        self._place(sim, grasp)
+        timeline = self.config.timeline(self.gripper, self.physics)
+        watch = _Watch(self, sim, group, timeline)
+        sim.simulator.set_monitor(watch)
         if sim.meshcat is not None:
             sim.meshcat.StartRecording()
         try:
             sim.simulator.Initialize()
-            sim.simulator.AdvanceTo(t_end)
+            sim.simulator.AdvanceTo(timeline["end"])
         except Exception as e:  # solver failure or a monitor abort
             msg = (
-                status["error"]
-                or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+                watch.error or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
             )
             return GraspResult(
                 False,
@@ -509,7 +421,22 @@ class DrakeVerifier:
             if sim.meshcat is not None:
                 sim.meshcat.StopRecording()
                 sim.meshcat.PublishRecording()
-        return self._verdict(sim, group, t0, status["early"])
+        return self._verdict(sim, group, t0, watch.early)
+
+    def _place(self, sim: _GroupSim, grasp) -> None:
+        """The check's start: the objects where the scene has them, the jaws open at the
+        grasp's pose and height."""
+        plant, pc = sim.plant, sim.plant_context
+        sim.context.SetTimeStateAndParametersFrom(sim.default_context)
+        half = self.gripper.opening / 2  # the jaws start open
+        sim.script.set_grasp(sim.script_context, grasp)
+        for i, body in sim.bodies.items():
+            plant.SetFloatingBaseBodyPoseInWorldFrame(pc, body, pose_to_transform(*sim.poses[i]))
+        j = sim.gripper.joints
+        z0 = sim.script.z_grasp
+        for joint, q in zip((j[0], j[1], j[2], j[4], j[5]), (grasp[0], grasp[1], z0, -half, half)):
+            joint.set_translation(pc, q)
+        j[3].set_angle(pc, grasp[2])  # yaw
 
     def _verdict(self, sim: _GroupSim, group, t0: float, early: str = "") -> GraspResult:
         cfg, plant, pc = self.config, sim.plant, sim.plant_context
@@ -535,3 +462,92 @@ class DrakeVerifier:
             return GraspResult(False, lifted, opening, t, wall, error="; ".join(errors), complete=False)
         success = not early and all(int(i) in lifted for i in group)
         return GraspResult(success, lifted, float(opening), t, wall, complete=not early)
+
+
+class _Watch:
+    """The check's monitor, looking at the state every SETTLE_PERIOD of simulated time: it
+    fails the run on a non-finite state or past the CPU budget, and ends it once every lifted
+    object has held still over ``hold_window``, once an object of the group is left on the
+    table (``early_exit``), or once every object settled (``settle_window``)."""
+
+    def __init__(self, verifier: DrakeVerifier, sim: _GroupSim, group, timeline: dict):
+        self.cfg, self.plant, self.period = verifier.config, sim.plant, verifier.SETTLE_PERIOD
+        self.timeline = timeline
+        self.cpu_deadline = time.thread_time() + self.cfg.cpu_budget
+        self.error = self.early = ""
+        self.group_bodies = [(int(i), sim.bodies[int(i)], sim.heights[int(i)]) for i in group]
+        self.z_joint = sim.gripper.joints[2]
+        self.finger_h = verifier.physics.finger_height
+        self.watched = [(body, sim.heights[i]) for i, body in sim.bodies.items()]  # (body, farthest point)
+        self.lifted_z = self.cfg.lifted_height
+        self.settle_samples: list = []
+        self.settle_next = timeline["lift1"]
+        self.still_samples: list = []
+        self.still_next = timeline["lift1"]
+        self.look_next = 0.0
+
+    def __call__(self, root_context):
+        cfg, plant = self.cfg, self.plant
+        t = root_context.get_time()
+        if t < self.look_next - 1e-9:  # Python looks at the state every SETTLE_PERIOD
+            return EventStatus.Succeeded()
+        self.look_next = t + self.period
+        ctx = plant.GetMyContextFromRoot(root_context)
+        q = plant.GetPositions(ctx)
+        if not np.all(np.isfinite(q)):
+            self.error = f"non-finite state at t = {t:.3f} s"
+            return EventStatus.Failed(None, self.error)
+        if time.thread_time() > self.cpu_deadline:
+            self.error = f"CPU budget of {cfg.cpu_budget:g} s exceeded at t = {t:.3f} s"
+            return EventStatus.Failed(None, self.error)
+        if cfg.hold_window > 0 and t >= self.still_next - 1e-9 and self._held_still(ctx, t):
+            return EventStatus.ReachedTermination(None, "every lifted object held still in the hold")
+        if cfg.early_exit and t > self.timeline["lift0"]:
+            finger_bottom = self.z_joint.get_translation(ctx) - self.finger_h
+            left = [
+                i
+                for i, body, top in self.group_bodies
+                if finger_bottom > plant.EvalBodyPoseInWorld(ctx, body).translation()[2] + top
+            ]
+            k = cfg.report_partial_lifts
+            if left and (k <= 0 or len(self.group_bodies) - len(left) < k):
+                self.early = f"object(s) {left} left on the table"
+                return EventStatus.ReachedTermination(None, self.early)
+        if cfg.settle_window > 0 and self._settled(ctx, t):
+            return EventStatus.ReachedTermination(None, "every object settled in the hold")
+        return EventStatus.Succeeded()
+
+    def _settled(self, ctx, t) -> bool:
+        """Whether, over the last settle_window of the hold, the fastest lifted object's
+        speed averaged under settle_speed (a mean: contact jitter spikes for a step or two).
+        Objects below the lifted height are left out: with the jaws still in the air, one
+        pushed aside on the table can slide on but never count as lifted."""
+        cfg, plant = self.cfg, self.plant
+        if t < self.settle_next:
+            return False
+        self.settle_next = t + self.period
+        fastest = 0.0
+        for body, r in self.watched:
+            if plant.EvalBodyPoseInWorld(ctx, body).translation()[2] <= self.lifted_z:
+                continue  # on the table: nothing in the hold can lift it now
+            V = plant.EvalBodySpatialVelocityInWorld(ctx, body)
+            fastest = max(fastest, np.linalg.norm(V.translational()) + r * np.linalg.norm(V.rotational()))
+        s = self.settle_samples
+        s.append((t, fastest))
+        while len(s) > 1 and t - s[1][0] >= cfg.settle_window - 1e-9:
+            s.pop(0)
+        return t - s[0][0] >= cfg.settle_window - 1e-9 and np.mean([v for _, v in s]) < cfg.settle_speed
+
+    def _held_still(self, ctx, t) -> bool:
+        """Whether, over the last hold_window of the hold, no object above the lifted height
+        moved more than hold_drift (sampled every SETTLE_PERIOD)."""
+        cfg = self.cfg
+        p = np.array([self.plant.EvalBodyPoseInWorld(ctx, body).translation() for body, _ in self.watched])
+        s = self.still_samples
+        s.append((t, p))
+        while len(s) > 1 and t - s[1][0] >= cfg.hold_window - 1e-9:
+            s.pop(0)
+        if t - s[0][0] < cfg.hold_window - 1e-9:
+            return False
+        up = p[:, 2] > self.lifted_z
+        return bool(np.all(np.linalg.norm(p - s[0][1], axis=1)[up] < cfg.hold_drift))

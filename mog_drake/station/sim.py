@@ -277,16 +277,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     builder.Connect(plant.get_state_output_port(), gs.get_input_port())
     builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
 
-    cam = scenario.camera
-    scene_graph.AddRenderer(cam.renderer_name, MakeRenderEngineVtk(RenderEngineVtkParams()))
-    color, depth = cam.MakeCameras()
-    sensor = builder.AddSystem(
-        RgbdSensor(scene_graph.world_frame_id(), RigidTransform(camera_pose(cam)), color, depth)
-    )
-    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
-    builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
-    builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
-    builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")
+    _add_camera(builder, scene_graph, scenario.camera)
     builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
     if meshcat is not None:
         ApplyVisualizationConfig(
@@ -306,6 +297,19 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     return diagram, StationHandles(
         plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), accel
     )
+
+
+def _add_camera(builder, scene_graph, cam) -> None:
+    """The overhead RGB-D camera (VTK), its images exported by the port contract's names."""
+    scene_graph.AddRenderer(cam.renderer_name, MakeRenderEngineVtk(RenderEngineVtkParams()))
+    color, depth = cam.MakeCameras()
+    sensor = builder.AddSystem(
+        RgbdSensor(scene_graph.world_frame_id(), RigidTransform(camera_pose(cam)), color, depth)
+    )
+    builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+    builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
+    builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
+    builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")
 
 
 def frame_work_cell(meshcat, scenario: Scenario) -> None:
