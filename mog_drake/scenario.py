@@ -32,7 +32,7 @@ from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import check_yaml, read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
-from mog_drake.sim.verifier import VerifierConfig
+from mog_drake.sim.verifier_config import VerifierConfig
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
 # m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their
@@ -213,7 +213,7 @@ class Scenario:
     # lying on its side rested on too few points and buzzed for good at most spots of the
     # table, and now and then the solver diverged (docs/physics.md, `bench rest`).
     contact: ContactConfig = field(default_factory=lambda: _contact(0.3, "triangle"))
-    # The physics check of the picking planner (`mog_drake.sim.verifier.VerifierConfig`).
+    # The physics check of the picking planner (`mog_drake.sim.verifier_config.VerifierConfig`).
     verifier: VerifierConfig = field(default_factory=lambda: picking_check())
     # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
     # planner's physics check alike.

@@ -10,7 +10,8 @@ from conftest import make_scene
 from mog_drake.geometry import evaluate_grasps, objects_in_reach
 from mog_drake.planning.protocol import Verifier
 from mog_drake.sim.models import ContactConfig, with_time_step
-from mog_drake.sim.verifier import DrakeVerifier, VerifierConfig
+from mog_drake.sim.verifier import DrakeVerifier
+from mog_drake.sim.verifier_config import VerifierConfig
 
 
 @pytest.fixture(scope="module")
