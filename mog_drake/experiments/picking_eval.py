@@ -8,8 +8,16 @@ import statistics
 from collections import Counter
 from pathlib import Path
 
+from mog_drake.experiments.picking_compare import (
+    _wait_pct,
+    check_comparable,
+    compare,
+    compare_modes,
+    compare_text,
+    transit_drops,
+)
 from mog_drake.experiments.stats import mean_ci
-from mog_drake.experiments.sweep import check_params, read_params, run_sweep
+from mog_drake.experiments.sweep import check_params, run_sweep
 
 PAPER_TABLE1 = {
     "sog": {"success_rate": 73.31, "picked_pct": 97.77, "pph": 212.59},
@@ -181,194 +189,6 @@ def summarize(results: list[dict], modes) -> dict:
     return out
 
 
-def transit_drops(runs: list[dict]) -> dict:
-    """The runs' objects dropped in transit: lifted (in the air as the arm left for the bin)
-    but not in the bin when the attempt ended. {"drop_attempts": attempts that dropped some,
-    "dropped": objects, "attempts": all attempts}."""
-    out = {"drop_attempts": 0, "dropped": 0, "attempts": 0}
-    for r in runs:
-        for a in r.get("attempts", ()):
-            out["attempts"] += 1
-            lost = len(a.get("carried") or ()) - (a.get("picked") or 0)
-            if lost > 0:
-                out["drop_attempts"] += 1
-                out["dropped"] += lost
-    return out
-
-
-#: Per-table numbers ``compare`` pairs, with the factor that turns them into the table's units.
-PAIRED = {
-    "success_rate": 100.0,
-    "picked_pct": 1.0,
-    "objects_per_success": 1.0,
-    "pph": 1.0,
-    "attempts": 1.0,
-    "robot_time_s": 1.0,
-    "planning_time_s": 1.0,
-    "cycle_time_s": 1.0,
-    "wait_perception_s": 1.0,
-    "wait_planning_s": 1.0,
-}
-COMPARE_COLUMNS = ["mode", "metric", "tables", "a", "b", "b_minus_a", "ci"]
-
-
-def tables_of(params: dict) -> dict:
-    """What decides a picking sweep's tables, from its parameters (sweep.json): the seed, the
-    objects and the time limit (each run's `task_scenario` sets the scene from them, on the
-    default isrr33 inventory), and its scenario's table (read alone: a sweep made with
-    settings since removed still names its tables)."""
-    import yaml
-
-    from mog_drake.scenario import Scenario
-
-    try:
-        doc = yaml.safe_load(params.get("scenario") or "") or {}
-    except yaml.YAMLError:
-        doc = {}
-    table = doc.get("table", Scenario().table) if isinstance(doc, dict) else Scenario().table
-    return {
-        "seed": params.get("seed"),
-        "objects": params.get("objects"),
-        "time_limit": params.get("time_limit"),
-        "table": [float(v) for v in table],
-    }
-
-
-def check_comparable(compare_dir, params: dict) -> None:
-    """Refuses, before a sweep runs, to pair it with the sweep in ``compare_dir`` unless both
-    ran the same tables (`tables_of`): the one line names the first difference."""
-
-    from mog_drake.errors import MogError
-
-    where = Path(compare_dir) / "sweep.json"
-    if not where.is_file():
-        raise MogError(f"--compare: {where} does not exist (give a picking sweep's --out folder)")
-    try:
-        other = read_params(compare_dir)
-    except MogError as e:
-        raise MogError(f"--compare: {e}") from None
-    if other.get("experiment") != "picking":
-        raise MogError(f"--compare: {where} is not a picking sweep")
-    a, b = tables_of(other), tables_of(params)
-    for key in a:
-        if a[key] != b[key]:
-            raise MogError(
-                f"--compare: {compare_dir} ran other tables ({key} {_short(a[key])}, here {_short(b[key])})"
-            )
-
-
-def _short(value, n: int = 80) -> str:
-    text = str(value)
-    return text if len(text) <= n else text[: n - 3] + "..."
-
-
-def compare(results_a: list[dict], results_b: list[dict]) -> dict:
-    """Sweep B against sweep A on the tables both ran (same key and table seed): per mode and
-    metric, both means and the mean paired difference B - A with its 95 % t interval (the
-    tables are the pairs, so table-to-table spread cancels). Also each side's transit drops
-    over those tables. Raises ``MogError`` when the two sweeps share no table."""
-    from mog_drake.errors import MogError
-
-    a = {r["key"]: r for r in results_a}
-    b = {r["key"]: r for r in results_b}
-    common = [k for k in a if k in b and a[k].get("scene_seed") == b[k].get("scene_seed")]
-    if not common:
-        raise MogError("the two picking sweeps share no table (same key and table seed): nothing to pair")
-    rows, drops = [], {}
-    for m in dict.fromkeys(a[k]["mode"] for k in common):
-        keys = [k for k in common if a[k]["mode"] == m]
-        for metric, scale in PAIRED.items():
-            pairs = [
-                (a[k]["summary"][metric] * scale, b[k]["summary"][metric] * scale)
-                for k in keys
-                if metric in a[k]["summary"]
-                and metric in b[k]["summary"]
-                and a[k]["summary"][metric] == a[k]["summary"][metric]
-                and b[k]["summary"][metric] == b[k]["summary"][metric]
-            ]
-            if not pairs:  # a metric one of the sweeps did not record
-                continue
-            diff, ci = mean_ci([y - x for x, y in pairs])
-            rows.append(
-                {
-                    "mode": m,
-                    "metric": metric,
-                    "tables": len(pairs),
-                    "a": mean_ci([x for x, _ in pairs])[0],
-                    "b": mean_ci([y for _, y in pairs])[0],
-                    "b_minus_a": diff,
-                    "ci": ci,
-                }
-            )
-        drops[m] = {"a": transit_drops([a[k] for k in keys]), "b": transit_drops([b[k] for k in keys])}
-    return {"rows": rows, "transit_drops": drops, "tables": len(common)}
-
-
-def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
-    """Mode B against mode A on the tables of one sweep that ran both (`compare`'s rows,
-    labelled "B vs A"), and table by table: PPH and objects per successful grasp of each,
-    the PPH ratio B / A, B's wait for compute as a share of its robot time, and the PPH ratio
-    had neither arm waited (``robot_pph_ratio``: objects in the bin per second of robot time,
-    B / A), the ratio's ceiling from the motions alone."""
-
-    def side(mode):
-        label = f"{b_mode} vs {a_mode}"
-        return [{**r, "key": f"s{r['scene']}", "mode": label} for r in results if r["mode"] == mode]
-
-    a, b = side(a_mode), side(b_mode)
-    paired = compare(a, b)
-    by_a = {r["key"]: r["summary"] for r in a}
-    tables = []
-    for r in sorted(b, key=lambda r: r["scene"]):
-        sa, sb = by_a.get(r["key"]), r["summary"]
-        if sa is None:
-            continue
-        tables.append(
-            {
-                "table": r["scene"],
-                f"pph_{a_mode}": sa["pph"],
-                f"pph_{b_mode}": sb["pph"],
-                "pph_ratio": sb["pph"] / sa["pph"] if sa["pph"] else float("nan"),
-                f"wait_pct_{b_mode}": _wait_pct(sb),
-                "robot_pph_ratio": _robot_pph(sb) / _robot_pph(sa) if _robot_pph(sa) else float("nan"),
-                f"per_grasp_{a_mode}": sa["objects_per_success"],
-                f"per_grasp_{b_mode}": sb["objects_per_success"],
-                f"picked_{b_mode}": sb["picked_pct"],
-                "pushes": sb.get("pushes", 0),
-            }
-        )
-    return {**paired, "per_table": tables}
-
-
-def _wait_pct(summary: dict) -> float:
-    """The arm's wait for compute as a share of its robot time (%); nan if not recorded."""
-    try:
-        return 100.0 * (summary["wait_perception_s"] + summary["wait_planning_s"]) / summary["robot_time_s"]
-    except (KeyError, ZeroDivisionError):
-        return float("nan")
-
-
-def _robot_pph(summary: dict) -> float:
-    """Objects in the bin per hour of robot time: the PPH had the arm never waited; nan if
-    not recorded."""
-    try:
-        return summary["pph"] * summary["cycle_time_s"] / summary["robot_time_s"]
-    except (KeyError, ZeroDivisionError):
-        return float("nan")
-
-
-def compare_text(doc: dict) -> str:
-    from mog_drake.tables import format_table
-
-    text = format_table(doc["rows"], COMPARE_COLUMNS, {"b_minus_a": "B - A", "ci": "+-95 %"})
-    for m, sides in doc["transit_drops"].items():
-        text += f"\n{m}: objects dropped in transit: " + "; ".join(
-            f"{side.upper()} {d['dropped']} ({d['drop_attempts']} of {d['attempts']} attempts)"
-            for side, d in sides.items()
-        )
-    return text
-
-
 def run(
     scenes: int,
     modes,
@@ -479,7 +299,6 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
     the table, the PPH ratio, the losses and, with ``compare_dir`` (another sweep's folder, A),
     the paired differences of this one (B) on the tables both ran."""
     import json
-    from pathlib import Path
 
     from mog_drake.errors import MogError
     from mog_drake.experiments import figures

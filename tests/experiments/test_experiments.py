@@ -5,7 +5,7 @@ import time
 import pytest
 
 from mog_drake.errors import MogError
-from mog_drake.experiments import conditions, picking_eval, planning_eval
+from mog_drake.experiments import conditions, picking_compare, picking_eval, planning_eval
 from mog_drake.experiments.stats import mean_ci, proportion_ci
 from mog_drake.experiments.sweep import check_params, load_results, run_sweep
 
@@ -237,7 +237,7 @@ def test_summary_only_leaves_a_line_being_written_alone(tmp_path):
 
 
 def _picking_record(scene, mode, success, pph, attempts=(), seed=None, timing=None):
-    summary = {k: 1.0 for k in picking_eval.PAIRED}
+    summary = {k: 1.0 for k in picking_compare.PAIRED}
     summary.update(success_rate=success, pph=pph, **(timing or {}))
     return {
         "key": f"s{scene}-{mode}",
@@ -264,7 +264,7 @@ def test_two_picking_sweeps_are_compared_table_by_table():
         _picking_record(1, "mog", 0.90, 510.0, [held, {"carried": [5, 6, 7], "picked": 0}]),
         _picking_record(3, "mog", 1.00, 900.0, seed=99),
     ]
-    doc = picking_eval.compare(a, b)
+    doc = picking_compare.compare(a, b)
     assert doc["tables"] == 2
     rows = {r["metric"]: r for r in doc["rows"]}
     success = rows["success_rate"]
@@ -276,9 +276,9 @@ def test_two_picking_sweeps_are_compared_table_by_table():
     drops = doc["transit_drops"]["mog"]
     assert drops["a"] == {"drop_attempts": 1, "dropped": 1, "attempts": 3}
     assert drops["b"] == {"drop_attempts": 1, "dropped": 3, "attempts": 3}
-    assert "A 1 (1 of 3 attempts); B 3 (1 of 3 attempts)" in picking_eval.compare_text(doc)
+    assert "A 1 (1 of 3 attempts); B 3 (1 of 3 attempts)" in picking_compare.compare_text(doc)
     with pytest.raises(MogError, match="share no table"):
-        picking_eval.compare(a[2:3], b)
+        picking_compare.compare(a[2:3], b)
 
 
 def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, capsys):
@@ -321,16 +321,16 @@ def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, 
     assert code == 2 and err.count("\n") == 1 and "ran other tables (objects 3, here 2)" in err, err
     assert not out.exists()
     with pytest.raises(MogError, match="seed 0, here 1"):
-        picking_eval.check_comparable(a, {**params, "seed": 1})
+        picking_compare.check_comparable(a, {**params, "seed": 1})
     with pytest.raises(MogError, match="table"):
-        picking_eval.check_comparable(a, {**params, "scenario": "table: [-0.2, 0.2, -0.3, 0.3]\n"})
-    picking_eval.check_comparable(a, {**params, "scenario": "planner: {lookahead: false}\n", "scenes": 5})
+        picking_compare.check_comparable(a, {**params, "scenario": "table: [-0.2, 0.2, -0.3, 0.3]\n"})
+    picking_compare.check_comparable(a, {**params, "scenario": "planner: {lookahead: false}\n", "scenes": 5})
     (a / "sweep.json").write_text(json.dumps({**params, "experiment": "conditions"}))
     with pytest.raises(MogError, match="not a picking sweep"):
-        picking_eval.check_comparable(a, params)
+        picking_compare.check_comparable(a, params)
     (a / "sweep.json").write_text("[]")
     with pytest.raises(MogError, match="--compare: .* not a sweep's parameters"):
-        picking_eval.check_comparable(a, params)
+        picking_compare.check_comparable(a, params)
 
 
 def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
@@ -349,7 +349,7 @@ def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
         _picking_record(2, "sog", 1.0, 450.0),  # push-mog has not run table 2 yet
         _picking_record(0, "mog", 1.0, 999.0),
     ]
-    doc = picking_eval.compare_modes(results, "sog", "push-mog")
+    doc = picking_compare.compare_modes(results, "sog", "push-mog")
     assert doc["tables"] == 2
     assert [t["table"] for t in doc["per_table"]] == [0, 1]
     assert [t["pph_ratio"] for t in doc["per_table"]] == pytest.approx([1.6, 1.75])
