@@ -28,11 +28,12 @@ from pydrake.visualization import VisualizationConfig
 
 from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
 from mog_drake.errors import MogError
+from mog_drake.hardware.config import HardwareSpec, ReplaySource
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import check_yaml, read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
-from mog_drake.sim.verifier_config import VerifierConfig
+from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
 # m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their
@@ -123,81 +124,6 @@ def default_camera() -> CameraConfig:
     )
 
 
-# --- the real robot --------------------------------------------------------------------------
-@dataclass
-class RealSenseSource:
-    """An Intel RealSense (pyrealsense2), colour and depth aligned to colour."""
-
-    fps: int = 30
-
-
-@dataclass
-class ReplaySource:
-    """Recorded RGB-D frames (frame_*.npz) from ``dir``, one per ``frame_period`` s (the last
-    one held; default: the first one held)."""
-
-    dir: str = ""
-    frame_period: float = 1e9
-
-
-@dataclass
-class HardwareSpec:
-    """The real robot (see docs/hardware.md). ``enabled`` selects it."""
-
-    enabled: bool = False
-    robot_ip: str = ""  # required: the station refuses to start without it
-    gripper_port: int = 63352
-    camera: Union[RealSenseSource, ReplaySource] = field(default_factory=RealSenseSource)  # noqa: UP007
-    dry_run: bool = False  # log every command instead of sending it
-    command_log: str = "out/dry_run.jsonl"  # dry run: JSON lines of the commands, one run's
-    # Palm box (xmin, xmax, ymin, ymax, zmin, zmax; m, table frame); the fingertips stay inside
-    # it in x and y, and above the table top.
-    workspace: list[float] = field(default_factory=lambda: [-0.45, 0.45, -0.45, 0.55, 0.035, 0.65])
-    max_joint_speed: float = 1.5  # rad/s in wall-clock time: a target implying more is refused
-    # s of motion at max_joint_speed the stream may run ahead of the wall clock (PC jitter).
-    burst_window: float = 0.03
-    # m: every link frame (shoulder, elbow, wrists, flange) at least this far above the table top
-    # (about a link's radius; the pick's motions keep 0.15 m or more).
-    link_clearance: float = 0.05
-    link_box: list[float] = field(default_factory=list)  # optional box for every link frame
-    servo_period: float = 0.01  # s, servoJ streaming period (the controller's period)
-    stale_after: float = 0.1  # s without a new RTDE timestamp before the robot state is stale
-    gripper_timeout: float = 1.0  # s, hard deadline of one gripper request
-    gripper_activation_timeout: float = 5.0  # s for the gripper's activation (STA 3)
-    gripper_move_timeout: float = 5.0  # s for a gripper move to end (OBJ non-zero)
-
-
-def _contact(mu_table: float, surface: str = "polygon", table: str = "box") -> ContactConfig:
-    c = ContactConfig(mu_table=mu_table, table_collision=table)
-    c.plant.contact_surface_representation = surface
-    return c
-
-
-def picking_check() -> VerifierConfig:
-    """The picking planner's physics check (docs/physics.md has the evidence for each value).
-
-    Its model is the world's own contact (table friction changes how pushed objects turn and
-    slide; with the paper's near-frictionless table the check promised groups the world did
-    not lift), with polygon contact surfaces (triangles cost 1.7x for the same verdicts) on a
-    half-space table (0.88x the box's CPU, as many verdicts equal to the reference's). It
-    lifts 0.15 m and holds up to 2.5 s, as long as the arm takes to lift and carry a grasp to
-    the bin (a thin bar on its side, held end to end, slips out about 2 s after the lift), but
-    ends the hold as soon as no lifted object has moved 0.06 mm in 0.1 s: a grip that holds
-    moves with the jaws. It simulates only the objects
-    this grasp's jaws and the group can touch (``bodies: grasp``), and a check that holds two
-    or more of the group runs to the end to say which (for planner.partial_lifts; one lifted
-    object is not worth the hold: a lone object's own check is as cheap)."""
-    return VerifierConfig(
-        report_partial_lifts=2,
-        contact=_contact(0.3, table="halfspace"),
-        hold_time=2.5,
-        hold_window=0.1,
-        hold_drift=0.00006,
-        bodies="grasp",
-        cpu_budget=30.0,
-    )
-
-
 @dataclass
 class Scenario:
     """Everything a pick-and-place run depends on. Defaults run with no file at all."""
@@ -212,7 +138,7 @@ class Scenario:
     # Its contact surfaces are triangles: with polygons (one contact point per polygon) a bar
     # lying on its side rested on too few points and buzzed for good at most spots of the
     # table, and now and then the solver diverged (docs/physics.md, `bench rest`).
-    contact: ContactConfig = field(default_factory=lambda: _contact(0.3, "triangle"))
+    contact: ContactConfig = field(default_factory=lambda: contact_config(0.3, "triangle"))
     # The physics check of the picking planner (`mog_drake.sim.verifier_config.VerifierConfig`).
     verifier: VerifierConfig = field(default_factory=lambda: picking_check())
     # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
@@ -226,7 +152,7 @@ class Scenario:
     # or fixed times per stage (runs comparable across machines).
     latency: LatencyConfig = field(default_factory=LatencyConfig)
     # The simulated station's Simulator. Its target_realtime_rate stays 0: a real-time run is
-    # paced by the wall clock without catch-up (systems.pick.WallClockPacer).
+    # paced by the wall clock without catch-up (systems.pacer.WallClockPacer).
     simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
     # Meshcat (--meshcat, --record): the illustration geometry only.
     visualization: VisualizationConfig = field(
