@@ -137,6 +137,21 @@ class Perceiver(InstanceFitter):
         self.sym = {n: symmetry_order(self.library[n].vertices) for n in names}
         self.area = [self.library[n].area for n in names]
 
+    def _unexplained(self, found, im, obj, area_px) -> list:
+        """Object pixels no fitted polygon explains (a prism knocked onto its side, say, or
+        something not in the library), as blobs (pixel indices) larger than ``unknown_area``:
+        reported, so nobody calls such a table clear."""
+        cfg, P = self.config, im.P
+        covered = np.zeros(im.shape, dtype=bool)
+        for o in found:
+            shape = self.library[o.shape]
+            rows, cols = im.window((o.x, o.y), shape.radius + cfg.wall_margin, 0.0)
+            poly = transform(shape.vertices, o.x, o.y, o.theta)
+            # Its top and its side walls:
+            covered[rows, cols] |= near_polygon(P[rows, cols, 0], P[rows, cols, 1], poly, cfg.wall_margin)
+        _, blobs = components(np.flatnonzero(obj & ~covered), im.shape)
+        return [idx for idx in blobs if area_px.ravel()[idx].sum() > cfg.unknown_area]
+
     def changed_pixels(
         self,
         before: np.ndarray,
@@ -258,17 +273,7 @@ class Perceiver(InstanceFitter):
             pending.append((k, labels, colour, several))
         flush()
         found = [o for k in order for o in found_by[k]]
-        # Object pixels no fitted polygon explains (a prism knocked onto its side, say, or
-        # something not in the library): reported, so nobody calls such a table clear.
-        covered = np.zeros(z.shape, dtype=bool)
-        for o in found:
-            shape = self.library[o.shape]
-            rows, cols = im.window((o.x, o.y), shape.radius + cfg.wall_margin, 0.0)
-            poly = transform(shape.vertices, o.x, o.y, o.theta)
-            # Its top and its side walls:
-            covered[rows, cols] |= near_polygon(P[rows, cols, 0], P[rows, cols, 1], poly, cfg.wall_margin)
-        _, blobs = components(np.flatnonzero(obj & ~covered), z.shape)
-        unknown = [idx for idx in blobs if area_px.ravel()[idx].sum() > cfg.unknown_area]
+        unknown = self._unexplained(found, im, obj, area_px)
         found, moved = separate_overlaps(found, self.library)
         n_seen = len(found) + len(unknown)
         found = [o for o in found if within_reach(o.x, o.y, self.reach)]

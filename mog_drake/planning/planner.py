@@ -210,16 +210,7 @@ class GraspPlanner:
         polys = scene.polygons()
 
         t = time.perf_counter()
-        cands = gen_grasp_cands(
-            polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
-        )
-        if self.keep_out and len(cands):
-            cands = cands[clear_of_boxes(cands, self.keep_out, self.gripper)]
-        margin = None
-        if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
-            final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
-            keep = margin >= cfg.min_squeeze_margin
-            cands, margin, final = cands[keep], margin[keep], final[keep]
+        cands, margin, final = self._candidates(polys, group)
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None
@@ -285,6 +276,23 @@ class GraspPlanner:
             best_lift,
             cut,
         )
+
+    def _candidates(self, polys, group):
+        """The candidates of ``group`` (Sec. 5.1) clear of the keep-out boxes; for a lone
+        object with squeeze basins in use, only those whose basin is wide enough, with each
+        basin's width and final axis (else None, None)."""
+        cfg = self.config
+        cands = gen_grasp_cands(
+            polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
+        )
+        if self.keep_out and len(cands):
+            cands = cands[clear_of_boxes(cands, self.keep_out, self.gripper)]
+        margin = final = None
+        if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
+            final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
+            keep = margin >= cfg.min_squeeze_margin
+            cands, margin, final = cands[keep], margin[keep], final[keep]
+        return cands, margin, final
 
     AXIS_TOL = 0.15  # rad, closing axes this close (modulo pi) count as one axis
 
