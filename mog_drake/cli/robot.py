@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -129,35 +128,12 @@ def cmd_pick(args) -> int:
 
 
 def cmd_gripper(args) -> int:
-    """Bench check of a Robotiq 2F-85 over the URCap socket. A move waits for its end and says
-    whether it stopped on an object; a fault, an ignored command, a move that does not end or
-    a peer that talks nonsense ends in one line and exit 3."""
-    from mog_drake.hardware.robotiq import RobotiqCalibration, RobotiqClient
+    """Bench check of a Robotiq 2F-85 over the URCap socket (`robotiq.bench_check`): a fault,
+    an ignored command, a move that does not end or a peer that talks nonsense ends in one
+    line and exit 3."""
+    from mog_drake.hardware.robotiq import bench_check
 
-    cal = RobotiqCalibration()
-    # Every argument is checked before anything is sent.
-    try:
-        cal.force_to_byte(args.force)
-    except MogError as e:
-        raise MogError(f"--force: {e}") from None
-    for name in ("timeout", "move_timeout"):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v > 0):
-            raise MogError(f"--{name.replace('_', '-')} must be a positive number of seconds, got {v}")
-    with RobotiqClient(
-        args.ip,
-        args.port,
-        timeout=args.timeout,
-        calibration=cal,
-        activation_timeout=args.move_timeout,
-        move_timeout=args.move_timeout,
-    ) as g:
-        if args.action in ("open", "close"):
-            g.activate()
-            status = g.move(cal.stroke if args.action == "open" else 0.0, force=args.force)
-        else:
-            status = g.status()
-            g.check_fault("in the status read")
+    status = bench_check(args.ip, args.port, args.action, args.force, args.timeout, args.move_timeout)
     emit(
         args,
         status,

@@ -269,6 +269,26 @@ class RobotiqClient:
         }
 
 
+def bench_check(ip: str, port: int, action: str, force: float, timeout: float, move_timeout: float) -> dict:
+    """``action`` "open", "close" (after activating; each move waits for its end and says
+    whether it stopped on an object) or "status" of the gripper at ``ip``:``port``; returns
+    its status. Every argument is checked before anything is sent."""
+    cal = RobotiqCalibration()
+    try:
+        cal.force_to_byte(force)
+    except MogError as e:
+        raise MogError(f"--force: {e}") from None
+    with RobotiqClient(
+        ip, port, timeout=timeout, calibration=cal, activation_timeout=move_timeout, move_timeout=move_timeout
+    ) as g:
+        if action in ("open", "close"):
+            g.activate()
+            return g.move(cal.stroke if action == "open" else 0.0, force=force)
+        status = g.status()
+        g.check_fault("in the status read")
+        return status
+
+
 class RobotiqDriver(LeafSystem):
     """gripper.position (inner opening, m) -> moves; status -> gripper.state_measured.
 
