@@ -133,13 +133,13 @@ def _cmd_eval(args) -> int:
             modes,
             args.seed,
             out,
-            args.objects,
-            args.time_limit,
-            jobs,
-            args.ray,
-            progress,
-            scenario,
-            args.compare,
+            objects=args.objects,
+            time_limit=args.time_limit,
+            jobs=jobs,
+            ray_address=args.ray,
+            progress=progress,
+            scenario=scenario,
+            compare_dir=args.compare,
         )
         text = picking_eval.report(summary, results, out, args.compare)
     elif args.experiment == "conditions":
@@ -150,11 +150,11 @@ def _cmd_eval(args) -> int:
             args.scenes_per_class,
             args.seed,
             out,
-            jobs,
-            args.ray,
-            progress,
-            args.positions,
-            args.orientations,
+            jobs=jobs,
+            ray_address=args.ray,
+            progress=progress,
+            n_positions=args.positions,
+            n_orientations=args.orientations,
         )
         text = conditions.report(summary, out)
     else:
@@ -170,13 +170,13 @@ def _cmd_eval(args) -> int:
             args.scenes_per_class,
             args.seed,
             out,
-            methods,
-            jobs,
-            args.ray,
-            args.max_physics,
-            progress,
-            args.positions,
-            args.orientations,
+            methods=methods,
+            jobs=jobs,
+            ray_address=args.ray,
+            max_physics=args.max_physics,
+            progress=progress,
+            n_positions=args.positions,
+            n_orientations=args.orientations,
         )
         text = planning_eval.report(summary, out)
     emit(args, summary, text)
