@@ -59,8 +59,11 @@ def run(
         from mog_drake.experiments.bench.station import bench_station
 
         rows = bench_station(seed)
+        before = bench_cell(seed, period=0.05)  # v17 looked every 0.05 s (with a 2 m/s reach)
         cell = bench_cell(seed)
-        return {what: rows, "cell": cell}, format_table(rows) + "\n" + cell_text(cell)
+        return {what: rows, "cell": cell, "cell_before": before}, format_table(rows) + "\n" + cell_text(
+            cell, before
+        )
     elif what == "replanning":
         from mog_drake.experiments.bench.station import bench_replanning
 

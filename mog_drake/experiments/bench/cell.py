@@ -23,8 +23,9 @@ import time
 from collections import Counter
 
 
-def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
-    """The pick run's CPU per simulated second, by component and by the arm's phase."""
+def bench_cell(seed: int = 0, sim_seconds: float = 40.0, period: float | None = None) -> dict:
+    """The pick run's CPU per simulated second, by component and by the arm's phase;
+    ``period``: the sleepers' look (default: `run_pick`'s ``SLEEP_PERIOD``)."""
     from pydrake.geometry import HydroelasticContactRepresentation
     from pydrake.systems.analysis import Simulator
 
@@ -32,6 +33,8 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station.scoring import BinRetirement
     from mog_drake.systems.pick import SLEEP_PERIOD, MakePickDiagram
+
+    period = period or SLEEP_PERIOD
 
     sc = Scenario(scene=ClutteredScene(seed=seed), latency=LatencyConfig(mode="fixed"))
     timers = _Timers()
@@ -50,9 +53,9 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
         if sc.contact.plant.contact_surface_representation == "triangle"
         else HydroelasticContactRepresentation.kPolygon
     )
-    steps = SLEEP_PERIOD / plant.time_step()
+    steps = period / plant.time_step()
     retire = BinRetirement(plant, h.bodies, sc)
-    sleep = h.sleep(SLEEP_PERIOD) if sc.sleep else None
+    sleep = h.sleep(period) if sc.sleep else None
     sim.Initialize()
     by = {k: Counter() for k in ("sim_s", "cpu_s", "awake_s", "points")}
     samples = Counter()
@@ -62,17 +65,17 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
         while ctx.get_time() < sim_seconds - 1e-9:
             phase = controller.state(cc).mode
             c0 = time.thread_time()
-            sim.AdvanceTo(ctx.get_time() + SLEEP_PERIOD)
+            sim.AdvanceTo(ctx.get_time() + period)
             c1 = time.thread_time()
             retire.update(pc)
             if sleep is not None:
                 sleep.update(ctx, skip=retire.retired)
             c2 = time.thread_time()
             advance, between = advance + c1 - c0, between + c2 - c1
-            by["sim_s"][phase] += SLEEP_PERIOD
+            by["sim_s"][phase] += period
             by["cpu_s"][phase] += c2 - c0
             asleep = len(sleep.asleep) if sleep is not None else 0
-            by["awake_s"][phase] += (len(h.bodies) - asleep - len(retire.retired)) * SLEEP_PERIOD
+            by["awake_s"][phase] += (len(h.bodies) - asleep - len(retire.retired)) * period
             if k % 5 == 0:
                 qo = query.Eval(sgc)
                 g0 = time.thread_time()
@@ -105,7 +108,8 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0) -> dict:
         }
         for p in by["sim_s"]
     ]
-    return {"seed": seed, "sim_s": T, "components": rows, "phases": phases}
+    awake = sum(by["awake_s"].values()) / T
+    return {"seed": seed, "sim_s": T, "period": period, "awake": awake, "components": rows, "phases": phases}
 
 
 class _Timers:
@@ -160,10 +164,27 @@ def _is_callback(value) -> bool:
     return callable(value) and not isinstance(value, type)
 
 
-def cell_text(doc: dict) -> str:
+def cell_text(doc: dict, before: dict | None = None) -> str:
+    """The split of ``doc``; with ``before`` (the same run, sleepers looked at less often),
+    both runs' totals side by side first."""
     from mog_drake.tables import format_table
 
-    return (
+    head = ""
+    if before is not None:
+        rows = [
+            {
+                "sleepers_looked_at_every_s": d["period"],
+                "objects_awake": d["awake"],
+                "cpu_s_per_sim_s": d["components"][-1]["cpu_s_per_sim_s"],
+            }
+            for d in (before, doc)
+        ]
+        head = (
+            "\nthe same run, sleepers looked at less often (before) and as shipped\n"
+            + format_table(rows)
+            + "\n"
+        )
+    return head + (
         f"\nseed-{doc['seed']} table, mog, {doc['sim_s']:.0f} s simulated: CPU per simulated second\n"
         + format_table(doc["components"])
         + "\n\nby the arm's phase\n"
