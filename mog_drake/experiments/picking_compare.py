@@ -12,13 +12,15 @@ from mog_drake.experiments.sweep import read_params
 
 def transit_drops(runs: list[dict]) -> dict:
     """The runs' objects dropped in transit: lifted (in the air as the arm left for the bin)
-    but not in the bin when the attempt ended. {"drop_attempts": attempts that dropped some,
-    "dropped": objects, "attempts": all attempts}."""
+    but not in the bin when the attempt ended (`dropped_in_transit`). {"drop_attempts":
+    attempts that dropped some, "dropped": objects, "attempts": all attempts}."""
+    from mog_drake.systems.pick import dropped_in_transit
+
     out = {"drop_attempts": 0, "dropped": 0, "attempts": 0}
     for r in runs:
         for a in r.get("attempts", ()):
             out["attempts"] += 1
-            lost = len(a.get("carried") or ()) - (a.get("picked") or 0)
+            lost = dropped_in_transit(a)
             if lost > 0:
                 out["drop_attempts"] += 1
                 out["dropped"] += lost

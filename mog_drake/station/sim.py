@@ -127,7 +127,7 @@ ARM_LEVER = 1.1  # m: the UR5's reach (0.85 m) plus the gripper's length, with r
 class StationHandles:
     """What tests and the simulation driver may need beyond the ports."""
 
-    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, arm_accel=50.0):
+    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, arm_accel):
         self.camera_intrinsics = camera_intrinsics
         self.arm_accel = arm_accel  # m/s^2, bound on any point of the arm's acceleration
         self.plant = plant

@@ -89,12 +89,12 @@ class Sleep:
                 speed, np.linalg.norm(V.translational()) + self.finger_reach * np.linalg.norm(V.rotational())
             )
         H = self.horizon
-        self.reach = speed * H + 0.5 * self.accel * H * H + self.finger_reach
+        reach = speed * H + 0.5 * self.accel * H * H + self.finger_reach
         r = np.array([self.radii[i] for i in ids])
         moving = [k for k in range(len(ids)) if v[k] > self.rest_speed]
 
         def reachable(k: int, scale: float) -> bool:
-            if np.min(np.linalg.norm(grip - p[k], axis=1)) < r[k] + scale * self.reach:
+            if np.min(np.linalg.norm(grip - p[k], axis=1)) < r[k] + scale * reach:
                 return True
             for m in moving:
                 gap = r[m] + r[k] + scale * (self.horizon * v[m] + self.margin)

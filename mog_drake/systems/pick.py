@@ -145,10 +145,13 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     }
 
 
-def _dropped(a: dict) -> bool:
+def dropped_in_transit(a: dict) -> int:
+    """Objects an attempt lost on the way to the bin: in simulation those lifted (in the air as
+    the arm left for the bin) but not in the bin when it ended; on hardware the holds the
+    gripper lost (OBJ 2 -> 3)."""
     if a.get("carried") is not None:
-        return (a.get("picked") or 0) < len(a["carried"])
-    return bool(a.get("lost"))
+        return max(len(a["carried"]) - (a.get("picked") or 0), 0)
+    return int(a.get("lost") or 0)
 
 
 @dataclass
@@ -201,7 +204,7 @@ class PickRun:
             "retakes": self.retakes,
             # attempts that lost something on the way to the bin: in simulation, lifted objects
             # not in the bin; on hardware, the gripper's hold lost (OBJ 2 -> 3)
-            "dropped": sum(_dropped(a) for a in self.attempts),
+            "dropped": sum(dropped_in_transit(a) > 0 for a in self.attempts),
             "pushes": len(self.pushes),
             "push_time_s": self.push_time,
             "push_gain": self.push_gain(),
