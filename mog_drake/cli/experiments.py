@@ -77,7 +77,7 @@ def add_parsers(sub) -> None:
         "--budget",
         type=float,
         default=None,
-        help="replanning: compare the defaults with planner.decision_budget_s = this (s)",
+        help="replanning: compare the defaults with planner.loop.decision_budget_s = this (s)",
     )
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
@@ -159,7 +159,7 @@ def _cmd_eval(args) -> int:
         text = conditions.report(summary, out)
     else:
         from mog_drake.experiments import planning_eval
-        from mog_drake.planning.planner import METHODS
+        from mog_drake.planning.config import METHODS
 
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
         bad = [m for m in methods if m not in METHODS]

@@ -257,12 +257,12 @@ def cmd_candidates(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
     from mog_drake.sim.verifier import DrakeVerifier
 
     scene = load_scene(args)
     group, source = resolve_group(scene, args.group)
-    planner = GraspPlanner(DrakeVerifier(), PlannerConfig(method=args.method, max_physics=args.max_physics))
+    planner = GraspPlanner(DrakeVerifier(), GraspConfig(method=args.method, max_physics=args.max_physics))
     res = planner.plan(scene, group, rng=np.random.default_rng(args.seed))
     doc = {"scene": args.scene, "group_source": source, **res.to_dict()}
     emit(args, doc, res.text().replace(f"group {list(res.group)}", f"group {list(res.group)} ({source})", 1))

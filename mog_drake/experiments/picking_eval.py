@@ -121,7 +121,10 @@ def task_grouping_ceiling(task: dict) -> float:
 
     sc = task_scenario(task)
     return grouping_ceiling(
-        scene_from_spec(sc.scene), sc.planner.group_radius, GripperGeometry().w_g, sc.planner.grouping
+        scene_from_spec(sc.scene),
+        sc.planner.loop.group_radius,
+        GripperGeometry().w_g,
+        sc.planner.loop.grouping,
     )
 
 

@@ -61,7 +61,7 @@ class SceneMemo:
 
 
 def planner_worker(task: dict) -> dict:
-    from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
     from mog_drake.scenes import row_scene
     from mog_drake.sim.verifier import DrakeVerifier
 
@@ -69,7 +69,7 @@ def planner_worker(task: dict) -> dict:
     memo = SceneMemo(DrakeVerifier())
     out = {}
     for m_index, method in enumerate(task["methods"]):
-        cfg = PlannerConfig(
+        cfg = GraspConfig(
             method=method,
             max_physics=task.get("max_physics"),
             n_positions=task["n_positions"],

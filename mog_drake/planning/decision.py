@@ -183,7 +183,7 @@ class PickDecision:
     failures: tuple[FailedGroup | FailedPush | PaidPush, ...] = ()
     # push-mog: the push to make (`mog_drake.geometry.push.Push`); ``group`` is then the group
     # it sets up, ``expected`` what the physics check lifted with that group's grasp after the
-    # push, and ``grasp`` that grasp if it is to follow at once (planner.push_then_grasp);
+    # push, and ``grasp`` that grasp if it is to follow at once (planner.pushes.then_grasp);
     # ``now``: the objects the grasp that was possible without the push lifted.
     push: Push | None = None
     now: int = 0

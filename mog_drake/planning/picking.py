@@ -115,9 +115,9 @@ def next_pick(
         return _push_mog(
             scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post
         )
-    mode, last_resort = spec.mode, spec.last_resort
+    mode, last_resort = spec.mode, spec.loop.last_resort
     t0 = time.perf_counter()
-    deadline = planner.clock() + spec.decision_budget_s if spec.decision_budget_s > 0 else None
+    deadline = planner.clock() + spec.loop.decision_budget_s if spec.loop.decision_budget_s > 0 else None
     if len(scene) == 0:
         return _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0)
     if mode == "mog":
@@ -130,7 +130,7 @@ def next_pick(
         groups = _excluding(groups, exclude)
         if not groups:
             return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
-    partial_lifts = spec.partial_lifts and mode == "mog"
+    partial_lifts = spec.loop.partial_lifts and mode == "mog"
     if not partial_lifts:
         deadline = None  # the budget ends a search only with a verified partial lift in hand
     decision = PickDecision("no_grasp")
@@ -200,7 +200,12 @@ def _push_mog(
         late=late,
         post=post,
     )
-    if pushes_left > 0 and spec.push_checks > 0 and not d.unrecognised and d.status in ("grasp", "no_grasp"):
+    if (
+        pushes_left > 0
+        and spec.pushes.checks > 0
+        and not d.unrecognised
+        and d.status in ("grasp", "no_grasp")
+    ):
         memory = failures
         if failures is not None and late is not None:
             d.merged |= bool(late.new())
@@ -241,10 +246,10 @@ def _remembered(group, around, pending: list, failures, avoid, late, decision) -
 
 
 def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float) -> list[tuple[int, ...]]:
-    """Alg. 1's groups of ``scene`` (``spec.grouping``), largest first; with ``adjacent``
+    """Alg. 1's groups of ``scene`` (``spec.loop.grouping``), largest first; with ``adjacent``
     above 0 (push-mog), the groups of objects that meet within it too."""
     polys = scene.polygons()
-    groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
+    groups = ranked_groups(polys, planner.gripper, spec.loop.grouping, spec.loop.group_radius)
     if adjacent > 0:
         more = [g for g in adjacent_groups(polys, adjacent, planner.gripper.w_g) if g not in groups]
         groups = sorted(groups + more, key=lambda g: -len(g))

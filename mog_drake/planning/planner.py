@@ -29,10 +29,9 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
+from mog_drake.planning.config import METHODS, GraspConfig
 from mog_drake.planning.protocol import GraspResult, Verifier
 
-METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")
-DIAMETER_CONDITIONS = ("paper", "columns")
 _RANKED = {"gp": True, "rand-phys": False, "rank-phys": True, "rand-fil-phys": False, "single": True}
 _FILTERED = {"gp": True, "rand-phys": False, "rank-phys": False, "rand-fil-phys": True, "single": True}
 
@@ -41,46 +40,6 @@ def draws_at_random(method: str) -> bool:
     """Whether ``method`` draws at random (its candidates' order, or the object): else a
     plan of the same scene and group gives the same verdict every time."""
     return not _RANKED[method] or method == "single"
-
-
-@dataclass
-class PlannerConfig:
-    method: str = "gp"
-    n_positions: int = 70  # Np
-    n_orientations: int = 7  # Ntheta
-    max_physics: int | None = None  # stop after this many physics checks (None: never)
-    # An extension, off in the paper's experiments: also try closing axes normal to the
-    # group's edges, tried first among equals (see candidate_grasps).
-    edge_orientations: bool = False
-    # An extension, 0 (off) in the paper's experiments: a lone object is not grasped along an
-    # axis from which a turn smaller than this (rad) about the vertical lets the squeeze drive
-    # it on to another final diameter (see squeeze_basins): a thin bar held end to end.
-    min_squeeze_margin: float = 0.0
-    # An extension, off in the paper's experiments: after a failed physics check, candidates
-    # whose closing axis is within AXIS_TOL of a failed one are tried only once no other axis
-    # is left. A grip that slips along one axis rarely holds a few mm further along it: a
-    # lone bar lying on its side ranks four end-to-end grips first, and all four slip.
-    vary_axis: bool = False
-    # An extension, off in the paper's experiments: a lone object's candidates are ranked by
-    # squeeze-basin margin, widest first (the closing axis the squeeze forgives most), total
-    # intersection area breaking ties. Area alone prefers the longest grip: a bar lying on its
-    # side held end to end, which slips.
-    lone_widest_basin: bool = False
-    # The diameter condition the filter applies: "paper" (h0 >= h_fmin, Eq. 7) or, an
-    # extension, "columns" (the frictional h0 >= h_fmin_columns, see
-    # GraspEvaluation.diameter_ok_columns): it admits objects held side by side by the
-    # jaws' friction.
-    diameter: str = "paper"
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise MogError(f"unknown planner method '{self.method}' (known: {', '.join(METHODS)})")
-        if self.diameter not in DIAMETER_CONDITIONS:
-            raise MogError(f"diameter must be one of {', '.join(DIAMETER_CONDITIONS)}, got {self.diameter!r}")
-        if self.n_positions < 1 or self.n_orientations < 1:
-            raise MogError("n_positions and n_orientations must be at least 1")
-        if not 0 <= self.min_squeeze_margin < math.pi / 2:
-            raise MogError(f"min_squeeze_margin must be in [0, pi/2) rad, got {self.min_squeeze_margin}")
 
 
 def repeats(grasps, avoid) -> np.ndarray:
@@ -159,12 +118,12 @@ class GraspPlanner:
     def __init__(
         self,
         verifier: Verifier,
-        config: PlannerConfig | None = None,
+        config: GraspConfig | None = None,
         gripper: GripperGeometry | None = None,
         keep_out=(),
     ):
         self.verifier = verifier
-        self.config = config or PlannerConfig()
+        self.config = config or GraspConfig()
         # The clock of ``plan``'s ``deadline`` (read on the planning thread).
         self.clock = time.thread_time
         self.gripper = gripper or GripperGeometry()
@@ -217,8 +176,10 @@ class GraspPlanner:
         n_passed = -1
         if _RANKED[method] or _FILTERED[method]:
             t = time.perf_counter()
-            ev = evaluate_grasps(polys, group, cands, self.gripper, columns=cfg.diameter == "columns")
-            passed = ev.passed if cfg.diameter == "paper" else ev.passed_columns
+            ev = evaluate_grasps(
+                polys, group, cands, self.gripper, columns=cfg.diameter_condition == "columns"
+            )
+            passed = ev.passed if cfg.diameter_condition == "paper" else ev.passed_columns
             n_passed = int(passed.sum())
             times["filter" if _FILTERED[method] else "rank"] += time.perf_counter() - t
         if _RANKED[method]:
@@ -288,9 +249,9 @@ class GraspPlanner:
         if self.keep_out and len(cands):
             cands = cands[clear_of_boxes(cands, self.keep_out, self.gripper)]
         margin = final = None
-        if (cfg.min_squeeze_margin > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
+        if (cfg.min_squeeze_margin_deg > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
             final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
-            keep = margin >= cfg.min_squeeze_margin
+            keep = margin >= math.radians(cfg.min_squeeze_margin_deg)
             cands, margin, final = cands[keep], margin[keep], final[keep]
         return cands, margin, final
 

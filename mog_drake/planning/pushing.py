@@ -79,7 +79,7 @@ def _consider_pushes(
     scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid, memory=None
 ) -> None:
     """push-mog: turns decision ``d`` (Alg. 1's) into a push when its grasp lifts fewer than
-    ``push_below`` objects and the push and the grasp it sets up are expected to take more
+    ``pushes.below`` objects and the push and the grasp it sets up are expected to take more
     objects per second of robot time than ``d``'s grasp:
     m / (push_time_s + T + grasp_time_s) > n / grasp_time_s, n being what ``d``'s grasp
     lifted in the physics check, m what the grasp after the push lifted, and T the push's
@@ -89,12 +89,12 @@ def _consider_pushes(
     joining the largest group (of Alg. 1's, on this table) that holds the other one and not
     it, and fits the jaws. Those whose group is large enough to beat ``d`` by that rule, even
     if the grasp lifts it all, are simulated largest group first, then shortest push, up to
-    ``push_checks`` of them: the push in physics (the verifier's ``push``), then the group's
+    ``pushes.checks`` of them: the push in physics (the verifier's ``push``), then the group's
     grasp planned on the table the push leaves (the same planner, physics included).
 
     ``memory`` (the previous decision's, with remember_failures; None: off): a push that did
     not pay before (`FailedPush`), whose surroundings are where they were, is not simulated
-    again and does not count against ``push_checks``: the next candidate is simulated
+    again and does not count against ``pushes.checks``: the next candidate is simulated
     instead. Pushes that do not pay now are added to ``d.failures``. A push the lookahead
     found to pay (`PaidPush`), whose objects are where they were, is taken with its grasp and
     nothing is simulated."""
@@ -103,19 +103,19 @@ def _consider_pushes(
     if not hasattr(verifier, "push"):
         raise MogError("push-mog needs a verifier that simulates pushes (DrakeVerifier)")
     n_now = len(d.expected) if d.status == "grasp" else 0
-    if n_now >= spec.push_below:
+    if n_now >= spec.pushes.below:
         return
-    tp, tg = spec.push_time_s, spec.grasp_time_s
+    tp, tg = spec.pushes.push_time_s, spec.pushes.grasp_time_s
     polys = scene.polygons()
-    groups = ranked_groups(polys, planner.gripper, spec.grouping, spec.group_radius)
+    groups = ranked_groups(polys, planner.gripper, spec.loop.grouping, spec.loop.group_radius)
     w_g = planner.gripper.w_g
     options = []
-    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.push_reach, planner.keep_out):
+    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.pushes.reach, planner.keep_out):
         joined = next((g for g in groups if p.toward in g and p.target not in g), (p.toward,))
         group = tuple(sorted((p.target, *joined)))
         if polys.d_fmin[list(group)].sum() > w_g:
             continue
-        if len(group) / (tp + push_duration(p, spec.push_speed) + tg) > n_now / tg:
+        if len(group) / (tp + push_duration(p, spec.pushes.speed) + tg) > n_now / tg:
             options.append((-len(group), p.distance, p, group))
     options.sort(key=lambda o: o[:2])
     best, checks, simulated, failed = None, 0, 0, []
@@ -123,7 +123,10 @@ def _consider_pushes(
     paid = [f for f in memory or () if isinstance(f, PaidPush)]
     for _, _, p, group in options if paid else ():  # the lookahead's push, if it stands
         hit = _replay_push(paid, p, group, _around(scene, group, planner.gripper), scene, avoid)
-        if hit is not None and len(hit[2]) / (tp + push_duration(hit[1], spec.push_speed) + tg) > n_now / tg:
+        if (
+            hit is not None
+            and len(hit[2]) / (tp + push_duration(hit[1], spec.pushes.speed) + tg) > n_now / tg
+        ):
             used, push, lifted, grasp, after = hit
             best = (push, lifted, group, grasp, after)
             d.remembered_pushes += 1
@@ -133,16 +136,16 @@ def _consider_pushes(
     quick = copy.copy(planner)  # the grasps a push sets up: PUSH_GRASP_CHECKS checks each
     quick.config = replace(planner.config, max_physics=PUSH_GRASP_CHECKS)
     for _, _, p, group in options:
-        if simulated >= spec.push_checks:
+        if simulated >= spec.pushes.checks:
             break
         around = _around(scene, group, planner.gripper) if memory is not None else ()
         if memory is not None and _did_not_pay(
-            known, p, group, around, n_now / tg, tp + push_duration(p, spec.push_speed) + tg
+            known, p, group, around, n_now / tg, tp + push_duration(p, spec.pushes.speed) + tg
         ):
             d.remembered_pushes += 1
             continue
         simulated += 1
-        r = verifier.push(scene, p, spec.push_speed)
+        r = verifier.push(scene, p, spec.pushes.speed)
         if r.error:
             failed.append(FailedPush(p.target, p.toward, group, around, 0))
             continue
@@ -155,7 +158,7 @@ def _consider_pushes(
         else:
             failed.append(FailedPush(p.target, p.toward, group, around, 0))
             continue
-        rate = len(lifted) / (tp + push_duration(p, spec.push_speed) + tg)
+        rate = len(lifted) / (tp + push_duration(p, spec.pushes.speed) + tg)
         if rate <= n_now / tg:
             failed.append(FailedPush(p.target, p.toward, group, around, len(lifted)))
         elif best is None or len(lifted) > len(best[1]):
@@ -168,7 +171,7 @@ def _consider_pushes(
     if best is not None:
         d.now, d.push = n_now, best[0]
         d.status, d.group, d.expected = "push", best[2], best[1]
-        d.grasp = best[3] if spec.push_then_grasp else None
+        d.grasp = best[3] if spec.pushes.then_grasp else None
         d.after = best[4]
         d.shapes = tuple(scene.objects[i].shape for i in d.group)
         d.partial = d.last_resort = False

@@ -121,7 +121,7 @@ def picking_check() -> VerifierConfig:
     ends the hold as soon as no lifted object has moved 0.06 mm in 0.1 s: a grip that holds
     moves with the jaws. It simulates only the objects
     this grasp's jaws and the group can touch (``bodies: grasp``), and a check that holds two
-    or more of the group runs to the end to say which (for planner.partial_lifts; one lifted
+    or more of the group runs to the end to say which (for planner.loop.partial_lifts; one lifted
     object is not worth the hold: a lone object's own check is as cheap)."""
     return VerifierConfig(
         report_partial_lifts=2,

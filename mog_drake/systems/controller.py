@@ -290,7 +290,7 @@ class ControllerSystem(LeafSystem):
 
     def _start_push(self, new: ControllerState, s: ControllerState, d, t: float) -> None:
         """Starts the push of decision ``d`` (the jaws close on the way), or skips it as an
-        unreachable grasp is skipped. A push decision with a grasp (planner.push_then_grasp)
+        unreachable grasp is skipped. A push decision with a grasp (planner.pushes.then_grasp)
         grasps the group it set up at once, without a new image."""
         dec = d.decision
         try:

@@ -33,7 +33,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     spec = scenario.planner
     planner = GraspPlanner(
         verifier or DrakeVerifier(scenario.verifier, physics=scenario.gripper),
-        spec.grasp_planner(),
+        spec.grasp,
         keep_out=scenario.keep_out(),
     )
     # decision_budget_s is counted on the planning thread's clock (its CPU time, or the wall's).
@@ -113,7 +113,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
             time_limit=scenario.time_limit,
             config=scenario.controller,
             arm_view=arm_view(scenario, handles.camera_intrinsics),
-            push_speed=scenario.planner.push_speed,
+            push_speed=scenario.planner.pushes.speed,
         ),
     )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))

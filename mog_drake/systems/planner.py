@@ -41,7 +41,7 @@ class Decision(_Immutable):
     targets: tuple = ()
     misses: tuple = ()
     # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
-    # in while the plan ran: merge_lookahead), "dropped" (never in time), or "" (none ran).
+    # in while the plan ran: lookahead.merge), "dropped" (never in time), or "" (none ran).
     lookahead: str = ""
 
 
@@ -65,7 +65,7 @@ class PlannerSystem(LeafSystem):
     from the state before that decision, which was never executed.
 
     With ``ahead_planner`` (its own physics check: a built plant is one thread's) and
-    ``spec.lookahead``, once a grasp is decided the next decision is planned on a second
+    ``spec.lookahead.enabled``, once a grasp is decided the next decision is planned on a second
     thread while the arm moves (`mog_drake.planning.lookahead`)."""
 
     REMEMBER = 3  # grasps not to repeat: the last three issued
@@ -95,8 +95,8 @@ class PlannerSystem(LeafSystem):
         self._ahead_worker = Worker("lookahead", latency.clock)
         self._lookahead = (
             ahead_planner is not None
-            and self._spec.lookahead
-            and self._spec.remember_failures
+            and self._spec.lookahead.enabled
+            and self._spec.loop.remember_failures
             and self._spec.mode in ("mog", "push-mog")
         )
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
@@ -182,7 +182,7 @@ class PlannerSystem(LeafSystem):
             d,
             copy.deepcopy(rng),
             cur.recent,
-            self._spec.max_pushes - cur.pushes,
+            self._spec.pushes.max_per_table - cur.pushes,
             board,
             t_request=t,
             counter=counter,
@@ -210,7 +210,7 @@ class PlannerSystem(LeafSystem):
             used = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, used = ahead.result(), "used"
-            elif ahead.counter == cur.counter and self._spec.merge_lookahead and self._latency is None:
+            elif ahead.counter == cur.counter and self._spec.lookahead.merge and self._latency is None:
                 late, used = ahead.info, "late"  # its board
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
@@ -220,9 +220,9 @@ class PlannerSystem(LeafSystem):
             p.scene,
             rng,
             base.recent,
-            memory if self._spec.remember_failures else None,
+            memory if self._spec.loop.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
-            self._spec.max_pushes - base.pushes,
+            self._spec.pushes.max_per_table - base.pushes,
             given_up,
             late,
             t,

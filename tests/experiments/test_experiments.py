@@ -324,7 +324,9 @@ def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, 
         picking_compare.check_comparable(a, {**params, "seed": 1})
     with pytest.raises(MogError, match="table"):
         picking_compare.check_comparable(a, {**params, "scenario": "table: [-0.2, 0.2, -0.3, 0.3]\n"})
-    picking_compare.check_comparable(a, {**params, "scenario": "planner: {lookahead: false}\n", "scenes": 5})
+    picking_compare.check_comparable(
+        a, {**params, "scenario": "planner: {lookahead: {enabled: false}}\n", "scenes": 5}
+    )
     (a / "sweep.json").write_text(json.dumps({**params, "experiment": "conditions"}))
     with pytest.raises(MogError, match="not a picking sweep"):
         picking_compare.check_comparable(a, params)

@@ -296,7 +296,7 @@ def test_columns_match_a_shapely_reckoning_on_cluttered_tables():
 def test_the_planner_filters_with_the_diameter_condition_it_is_given():
     """The side-by-side cubes: with `diameter="columns"` more candidates of the pair pass the
     filter than with the paper's condition (the grasps across both, closing along x)."""
-    from mog_drake.planning.planner import GraspPlanner, PlannerConfig
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
     from mog_drake.planning.protocol import GraspResult
 
     class LiftsAnything:
@@ -304,11 +304,11 @@ def test_the_planner_filters_with_the_diameter_condition_it_is_given():
             return GraspResult(True, lifted=list(group))
 
     side = make_scene([("small_yellow_cube", 0.0, -0.0135, 0.0), ("small_yellow_cube", 0.0, 0.0135, 0.0)])
-    paper = GraspPlanner(LiftsAnything(), PlannerConfig()).plan(side, [0, 1])
-    columns = GraspPlanner(LiftsAnything(), PlannerConfig(diameter="columns")).plan(side, [0, 1])
+    paper = GraspPlanner(LiftsAnything(), GraspConfig()).plan(side, [0, 1])
+    columns = GraspPlanner(LiftsAnything(), GraspConfig(diameter_condition="columns")).plan(side, [0, 1])
     ev = evaluate_grasps(side.polygons(), [0, 1], columns.candidate_grasps, columns=True)
     assert paper.passed_conditions == int(ev.passed.sum())
     assert columns.passed_conditions == int(ev.passed_columns.sum()) > paper.passed_conditions
     assert columns.found and columns.tested == 1
     with pytest.raises(MogError, match="diameter"):
-        PlannerConfig(diameter="friction")
+        GraspConfig(diameter_condition="friction")

@@ -8,8 +8,8 @@ from conftest import make_scene
 from mog_drake.errors import MogError
 from mog_drake.geometry import evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.polygon import axis_gap
-from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.planner import METHODS, GraspPlanner, PlannerConfig
+from mog_drake.planning.config import LoopConfig, PlannerSpec
+from mog_drake.planning.planner import METHODS, GraspConfig, GraspPlanner
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import row_scene
 
@@ -45,7 +45,7 @@ def _index(cands, g):
 def test_rand_fil_phys_never_tests_a_filtered_candidate(scene):
     cands, ev = _figures(scene)
     v = FakeVerifier()  # nothing succeeds: every admissible candidate gets tested
-    res = GraspPlanner(v, PlannerConfig("rand-fil-phys")).plan(scene, scene.group, np.random.default_rng(0))
+    res = GraspPlanner(v, GraspConfig("rand-fil-phys")).plan(scene, scene.group, np.random.default_rng(0))
     tested = [_index(cands, g) for g in v.asked]
     assert len(tested) == res.tested == int(ev.passed.sum()) > 0
     assert all(ev.passed[i] for i in tested)
@@ -55,7 +55,7 @@ def test_rand_fil_phys_never_tests_a_filtered_candidate(scene):
 def test_rank_phys_tests_in_ranked_order_without_filter(scene):
     cands, ev = _figures(scene)
     v = FakeVerifier()
-    res = GraspPlanner(v, PlannerConfig("rank-phys", max_physics=40)).plan(scene, scene.group)
+    res = GraspPlanner(v, GraspConfig("rank-phys", max_physics=40)).plan(scene, scene.group)
     tested = [_index(cands, g) for g in v.asked]
     assert tested == list(rank_grasp_cands(ev)[:40]) and res.tested == 40
     assert any(not ev.passed[i] for i in tested)  # no filter: rejected candidates are simulated too
@@ -66,7 +66,7 @@ def test_gp_stops_at_first_success_in_ranked_filtered_order(scene):
     admissible = [int(i) for i in rank_grasp_cands(ev) if ev.passed[i]]
     assert len(admissible) >= 3
     v = FakeVerifier(good=[cands[admissible[2]]])
-    res = GraspPlanner(v, PlannerConfig("gp")).plan(scene, scene.group)
+    res = GraspPlanner(v, GraspConfig("gp")).plan(scene, scene.group)
     assert [_index(cands, g) for g in v.asked] == admissible[:3]
     assert res.found and res.tested == 3 and np.allclose(res.grasp, cands[admissible[2]])
     assert set(res.times) == {"candidates", "filter", "rank", "physics", "total"}
@@ -76,17 +76,17 @@ def test_random_methods_are_seeded(scene):
     runs = []
     for seed in (5, 5, 6):
         v = FakeVerifier()
-        GraspPlanner(v, PlannerConfig("rand-phys", max_physics=10)).plan(
+        GraspPlanner(v, GraspConfig("rand-phys", max_physics=10)).plan(
             scene, scene.group, np.random.default_rng(seed)
         )
         runs.append(np.array(v.asked))
     assert np.array_equal(runs[0], runs[1]) and not np.array_equal(runs[0], runs[2])
     with pytest.raises(MogError, match="seeded"):
-        GraspPlanner(FakeVerifier(), PlannerConfig("rand-phys")).plan(scene, scene.group)
+        GraspPlanner(FakeVerifier(), GraspConfig("rand-phys")).plan(scene, scene.group)
 
 
 def test_single_mode_plans_for_one_object(scene):
-    res = GraspPlanner(FakeVerifier(), PlannerConfig("single")).plan(
+    res = GraspPlanner(FakeVerifier(), GraspConfig("single")).plan(
         scene, scene.group, np.random.default_rng(2)
     )
     assert len(res.group) == 1 and res.group[0] in scene.group
@@ -94,7 +94,7 @@ def test_single_mode_plans_for_one_object(scene):
 
 def test_unknown_method_refused():
     with pytest.raises(MogError, match="unknown planner method 'magic'"):
-        PlannerConfig("magic")
+        GraspConfig("magic")
     assert set(METHODS) >= {"gp", "rand-phys", "rank-phys", "rand-fil-phys"}
 
 
@@ -124,7 +124,7 @@ def test_next_pick_tries_largest_groups_first_and_reports_clear():
         ]
     )
     v = FakeVerifier()  # nothing lifts: every group is tried, largest first
-    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp")))
+    d = next_pick(scene, GraspPlanner(v, GraspConfig("gp")))
     assert d.status == "no_grasp"
     assert [p.group for p in d.plans][0] == (0, 1, 2)
     assert [len(p.group) for p in d.plans] == sorted((len(p.group) for p in d.plans), reverse=True)
@@ -138,11 +138,15 @@ def test_next_pick_groups_by_the_conditions_when_asked():
     # the conditions group all four, and that group is planned first.
     scene = make_scene([("thin_bar", 0.02 * k, 0.0, math.pi / 2) for k in range(4)])
     v = FakeVerifier()
-    assert next_pick(scene, GraspPlanner(v), PlannerSpec(last_resort=False)).plans[0].group == (0, 1, 2)
-    d = next_pick(scene, GraspPlanner(v), PlannerSpec(grouping="conditions", last_resort=False))
+    assert next_pick(scene, GraspPlanner(v), PlannerSpec(loop=LoopConfig(last_resort=False))).plans[
+        0
+    ].group == (0, 1, 2)
+    d = next_pick(
+        scene, GraspPlanner(v), PlannerSpec(loop=LoopConfig(grouping="conditions", last_resort=False))
+    )
     assert d.plans[0].group == (0, 1, 2, 3) and [p.group for p in d.plans][1:] == [(0,), (1,), (2,), (3,)]
     with pytest.raises(MogError, match="grouping must be one of"):
-        next_pick(scene, GraspPlanner(v), PlannerSpec(grouping="nearest"))
+        next_pick(scene, GraspPlanner(v), PlannerSpec(loop=LoopConfig(grouping="nearest")))
 
 
 def test_next_pick_single_object_mode_plans_single_objects():
@@ -202,10 +206,10 @@ def test_unrecognised_blobs_left_alone_are_planned_as_prisms_of_their_outline():
 @pytest.mark.parametrize("vary_axis", [False, True])
 def test_a_plan_skipping_what_an_earlier_one_tested_goes_on_where_it_stopped(scene, vary_axis):
     whole = FakeVerifier()
-    GraspPlanner(whole, PlannerConfig("gp", max_physics=5, vary_axis=vary_axis)).plan(scene, scene.group)
+    GraspPlanner(whole, GraspConfig("gp", max_physics=5, vary_axis=vary_axis)).plan(scene, scene.group)
     v = FakeVerifier()
-    first = GraspPlanner(v, PlannerConfig("gp", max_physics=2, vary_axis=vary_axis)).plan(scene, scene.group)
-    GraspPlanner(v, PlannerConfig("gp", max_physics=3, vary_axis=vary_axis)).plan(
+    first = GraspPlanner(v, GraspConfig("gp", max_physics=2, vary_axis=vary_axis)).plan(scene, scene.group)
+    GraspPlanner(v, GraspConfig("gp", max_physics=3, vary_axis=vary_axis)).plan(
         scene, scene.group, skip=first.tested_indices
     )
     assert len(whole.asked) == 5 and np.array_equal(np.array(v.asked), np.array(whole.asked))
@@ -218,16 +222,19 @@ def test_last_resort_plans_deeper_before_giving_up():
 
     scene = make_scene([("small_yellow_cube", 0.02, -0.01, 0.3)])
     order = FakeVerifier()
-    GraspPlanner(order, PlannerConfig("gp", max_physics=10)).plan(scene, (0,))
+    GraspPlanner(order, GraspConfig("gp", max_physics=10)).plan(scene, (0,))
     v = FakeVerifier(good=[order.asked[5]])
-    capped = GraspPlanner(v, PlannerConfig("gp", max_physics=4))
+    capped = GraspPlanner(v, GraspConfig("gp", max_physics=4))
     d = next_pick(scene, capped)
     assert d.status == "grasp" and d.last_resort and np.allclose(d.grasp, order.asked[5])
     assert d.physics_checks == 6 and np.array_equal(np.array(v.asked), np.array(order.asked[:6]))
     v.asked.clear()
-    assert next_pick(scene, capped, PlannerSpec(last_resort=False)).status == "no_grasp" and len(v.asked) == 4
+    assert (
+        next_pick(scene, capped, PlannerSpec(loop=LoopConfig(last_resort=False))).status == "no_grasp"
+        and len(v.asked) == 4
+    )
     v = FakeVerifier()  # no grasp at all: the last resort spends its checks, then gives up
-    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)))
+    d = next_pick(scene, GraspPlanner(v, GraspConfig("gp", max_physics=4)))
     assert d.status == "no_grasp" and not d.last_resort
     assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
 
@@ -257,14 +264,16 @@ def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
             return GraspResult(False)
 
     v = LiftsTwoOnce()
-    d = next_pick(scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)))
+    d = next_pick(scene, GraspPlanner(v, GraspConfig("gp", max_physics=4)))
     assert d.status == "grasp" and d.partial and d.group == d.expected == (0, 1)
     assert set(v.asked) == {(0, 1, 2)} and d.groups_tried == 1
     np.testing.assert_allclose(d.grasp, d.plans[0].candidate_grasps[d.plans[0].tested_indices[1]])
 
     v = LiftsTwoOnce()
     d = next_pick(
-        scene, GraspPlanner(v, PlannerConfig("gp", max_physics=4)), PlannerSpec(partial_lifts=False)
+        scene,
+        GraspPlanner(v, GraspConfig("gp", max_physics=4)),
+        PlannerSpec(loop=LoopConfig(partial_lifts=False)),
     )
     assert d.status == "grasp" and not d.partial and len(d.group) == 1
 
@@ -280,19 +289,19 @@ def test_an_incomplete_check_is_no_partial_lift():
             self.asked.append(tuple(group))
             return GraspResult(False, lifted=list(group), complete=False)
 
-    d = next_pick(scene, GraspPlanner(StopsEarly(), PlannerConfig("gp", max_physics=2)))
+    d = next_pick(scene, GraspPlanner(StopsEarly(), GraspConfig("gp", max_physics=2)))
     assert d.status == "no_grasp" and not d.partial
 
 
 def test_avoided_grasps_are_not_tried_again(scene):
     cands, ev = _figures(scene)
     v = FakeVerifier()
-    first = GraspPlanner(v, PlannerConfig("gp", max_physics=1)).plan(scene, scene.group)
+    first = GraspPlanner(v, GraspConfig("gp", max_physics=1)).plan(scene, scene.group)
     tried = first.candidate_grasps[first.tested_indices[0]]
     v2 = FakeVerifier()
     # The same grasp, turned by pi (the jaws are symmetric) and nudged 1 mm, is still avoided.
     avoid = [tried + [0.001, 0.0, math.pi]]
-    again = GraspPlanner(v2, PlannerConfig("gp", max_physics=1)).plan(scene, scene.group, avoid=avoid)
+    again = GraspPlanner(v2, GraspConfig("gp", max_physics=1)).plan(scene, scene.group, avoid=avoid)
     assert again.tested == 1 and not np.allclose(v2.asked[0], tried)
 
 
@@ -313,7 +322,7 @@ def test_planner_system_does_not_repeat_its_last_grasp():
 
     # No latency: each decision is visible at the first update after its scene.
     system = PlannerSystem(
-        GraspPlanner(LiftsAnything(), PlannerConfig("gp")), latency=LatencyConfig("fixed", 0.0, 0.0)
+        GraspPlanner(LiftsAnything(), GraspConfig("gp")), latency=LatencyConfig("fixed", 0.0, 0.0)
     )
     ctx = system.CreateDefaultContext()
     port = system.GetInputPort("scene")
@@ -333,22 +342,20 @@ def test_squeeze_margin_keeps_a_lone_thin_bar_out_of_end_grips():
 
     scene = make_scene([("thin_bar", 0.0, 0.0, 0.3)], group=[0])
     axis = 0.3
-    for margin, end_grips in ((0.0, True), (math.radians(12), False)):
+    for margin, end_grips in ((0.0, True), (12.0, False)):
         v = FakeVerifier()
-        cfg = PlannerConfig(edge_orientations=True, min_squeeze_margin=margin)
+        cfg = GraspConfig(edge_orientations=True, min_squeeze_margin_deg=margin)
         res = GraspPlanner(v, cfg).plan(scene, [0])
         off_axis = np.abs(np.remainder(res.candidate_grasps[:, 2] - axis + np.pi / 2, np.pi) - np.pi / 2)
         assert bool(np.any(off_axis < math.atan(7 / 50))) == end_grips
         assert res.tested == len(v.asked) > 0
         _, m = squeeze_basins(scene.polygon(0), res.candidate_grasps[:, 2])
-        assert (m.min() >= margin) if margin else (m.min() < math.radians(12))
-    with pytest.raises(MogError, match="min_squeeze_margin"):
-        PlannerConfig(min_squeeze_margin=2.0)
+        assert (m.min() >= math.radians(margin)) if margin else (m.min() < math.radians(12))
+    with pytest.raises(MogError, match="min_squeeze_margin_deg"):
+        GraspConfig(min_squeeze_margin_deg=95.0)
     # groups of two or more are not filtered
     pair = make_scene([("thin_bar", 0.0, 0.0, 0.3), ("thin_bar", 0.0, 0.012, 0.3)], group=[0, 1])
-    cands_pair = GraspPlanner(FakeVerifier(), PlannerConfig(min_squeeze_margin=math.radians(12))).plan(
-        pair, [0, 1]
-    )
+    cands_pair = GraspPlanner(FakeVerifier(), GraspConfig(min_squeeze_margin_deg=12.0)).plan(pair, [0, 1])
     assert len(cands_pair.candidate_grasps) == len(gen_grasp_cands(pair.polygons(), [0, 1]))
 
 
@@ -358,7 +365,7 @@ def test_vary_axis_tries_a_new_closing_axis_after_each_failure():
     gaps = {}
     for vary in (False, True):
         v = FakeVerifier()  # every check fails
-        res = GraspPlanner(v, PlannerConfig(edge_orientations=True, max_physics=4, vary_axis=vary)).plan(
+        res = GraspPlanner(v, GraspConfig(edge_orientations=True, max_physics=4, vary_axis=vary)).plan(
             scene, [0]
         )
         assert res.grasp is None and res.tested == 4
@@ -374,7 +381,7 @@ def test_lone_widest_basin_grips_a_bar_on_its_side_across_at_its_centre():
     first = {}
     for widest in (False, True):
         v = FakeVerifier()
-        cfg = PlannerConfig(edge_orientations=True, max_physics=1, lone_widest_basin=widest)
+        cfg = GraspConfig(edge_orientations=True, max_physics=1, lone_widest_basin=widest)
         GraspPlanner(v, cfg).plan(scene, [0])
         first[widest] = v.asked[0]
     assert axis_gap(first[False][2], yaw) < math.radians(10)  # area alone: end to end
@@ -385,7 +392,7 @@ def test_lone_widest_basin_grips_a_bar_on_its_side_across_at_its_centre():
     asked = []
     for widest in (False, True):
         v = FakeVerifier()
-        GraspPlanner(v, PlannerConfig(max_physics=3, lone_widest_basin=widest)).plan(pair, [0, 1])
+        GraspPlanner(v, GraspConfig(max_physics=3, lone_widest_basin=widest)).plan(pair, [0, 1])
         asked.append(np.array(v.asked))
     np.testing.assert_array_equal(asked[0], asked[1])
 
@@ -408,7 +415,7 @@ def test_a_failed_group_is_not_planned_again_while_its_surroundings_are_unchange
             return GraspResult(False, lifted=sorted(group)[:2])
 
     v = PairAtBest()
-    planner = GraspPlanner(v, PlannerConfig("gp", max_physics=2))
+    planner = GraspPlanner(v, GraspConfig("gp", max_physics=2))
     d1 = next_pick(make_scene(bars + [("small_yellow_cube", 0.15, 0.15, 0.0)]), planner, failures=())
     assert d1.status == "grasp" and d1.partial and d1.expected == (0, 1) and d1.remembered == 0
     assert [f.group for f in d1.failures] == [(0, 1, 2)] and len(v.asked) == 2
@@ -471,7 +478,7 @@ def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_
             return GraspResult(True, lifted=list(group))
 
     v = LiftsAnything()
-    planner = GraspPlanner(v, PlannerSpec().grasp_planner())
+    planner = GraspPlanner(v, PlannerSpec().grasp)
     spec = PlannerSpec(mode="mog")
     first = make_scene([cube, hexagon])
     d1 = next_pick(first, planner, spec, failures=())
@@ -527,7 +534,7 @@ def test_the_planners_jaws_stay_out_of_the_bin():
     sc = Scenario()
     (box,) = sc.keep_out()
     bar = make_scene([("thin_bar:on_side", -0.215, box[2] - 0.012, 0.0)], table=(-0.3, 0.3, -0.4, 0.4))
-    cfg = sc.planner.grasp_planner()
+    cfg = sc.planner.grasp
     free, kept = FakeVerifier(), FakeVerifier()
     GraspPlanner(free, cfg).plan(bar, (0,))
     GraspPlanner(kept, cfg, keep_out=sc.keep_out()).plan(bar, (0,))
@@ -609,12 +616,16 @@ def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
                 return GraspResult(True, lifted=[3, 4, 5])
             return GraspResult(False)
 
-    cfg = PlannerConfig("gp", max_physics=4)
+    cfg = GraspConfig("gp", max_physics=4)
     v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), PlannerSpec(decision_budget_s=0.0), failures=())
+    d = next_pick(
+        scene, GraspPlanner(v, cfg), PlannerSpec(loop=LoopConfig(decision_budget_s=0.0)), failures=()
+    )
     assert d.status == "grasp" and d.expected == (3, 4, 5) and v.asked.count((0, 1, 2)) == 4
     v = Costly()
-    d = next_pick(scene, GraspPlanner(v, cfg), PlannerSpec(decision_budget_s=0.08), failures=())
+    d = next_pick(
+        scene, GraspPlanner(v, cfg), PlannerSpec(loop=LoopConfig(decision_budget_s=0.08)), failures=()
+    )
     assert d.status == "grasp" and d.partial and d.expected == (0, 1)
     assert v.asked == [(0, 1, 2), (0, 1, 2)]
     assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
@@ -636,8 +647,8 @@ def test_a_decision_reads_the_lookaheads_board_at_its_own_simulated_time():
     scene = make_scene(
         [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
     )
-    spec = PlannerSpec(last_resort=False)
-    cfg = PlannerConfig("gp", max_physics=1)
+    spec = PlannerSpec(loop=LoopConfig(last_resort=False))
+    cfg = GraspConfig("gp", max_physics=1)
     v = FakeVerifier()
     alone = next_pick(scene, GraspPlanner(v, cfg), spec, failures=())
     known = alone.failures
@@ -690,10 +701,8 @@ def test_the_lookahead_writes_each_group_it_simulates_and_each_verdict_on_its_bo
     v = FakeVerifier()
     board = Board(0.0, clock=lambda: float(len(v.asked)))
     decision = PickDecision("grasp", group=(0,), expected=(0,))
-    spec = PlannerSpec(last_resort=False)
-    memory = lookahead(
-        scene, decision, GraspPlanner(v, PlannerConfig("gp", max_physics=1)), spec, board=board
-    )
+    spec = PlannerSpec(loop=LoopConfig(last_resort=False))
+    memory = lookahead(scene, decision, GraspPlanner(v, GraspConfig("gp", max_physics=1)), spec, board=board)
     assert len(v.asked) == 2 and len(memory) == 2
     now = [0.0]
     reader = BoardReader(board, 0.0, clock=lambda: now[0])
@@ -721,8 +730,8 @@ def test_a_verdict_the_decision_already_remembers_is_not_taken_twice_from_the_bo
     scene = make_scene(
         [("large_hexagon", -0.15, 0.0, 0.0), ("blue_quad", 0.0, 0.15, 0.0), ("red_triangle", 0.15, 0.0, 0.0)]
     )
-    spec = PlannerSpec(last_resort=False)
-    cfg = PlannerConfig("gp", max_physics=1)
+    spec = PlannerSpec(loop=LoopConfig(last_resort=False))
+    cfg = GraspConfig("gp", max_physics=1)
     known = next_pick(scene, GraspPlanner(FakeVerifier(), cfg), spec, failures=()).failures
     board = Board(0.0, clock=lambda: 0.0)
     board.start()

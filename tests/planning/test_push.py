@@ -19,7 +19,7 @@ from mog_drake.geometry.push import (
     push_candidates,
     pusher_square,
 )
-from mog_drake.planning.config import PlannerSpec
+from mog_drake.planning.config import PlannerSpec, PushConfig
 from mog_drake.planning.picking import next_pick
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.planning.protocol import GraspResult
@@ -123,13 +123,13 @@ class ConsolidatingPhysics:
         return PushResult(self.after, {push.target: push.distance})
 
 
-def _decide(scene, pushes_left=5, **spec):
+def _decide(scene, pushes_left=5, **pushes):
     physics = ConsolidatingPhysics()
-    planner = GraspPlanner(physics, PlannerSpec().grasp_planner())
+    planner = GraspPlanner(physics, PlannerSpec().grasp)
     d = next_pick(
         scene,
         planner,
-        PlannerSpec(mode="push-mog", **spec),
+        PlannerSpec(mode="push-mog", pushes=PushConfig(**pushes)),
         np.random.default_rng(0),
         pushes_left=pushes_left,
     )
@@ -146,7 +146,7 @@ def test_push_mog_pushes_when_the_push_and_its_grasp_beat_the_grasp_now():
     assert set(d.group) == {0, 1} and set(d.expected) == {0, 1} and d.now == 1
     assert d.grasp is not None and len(physics.pushes) >= 1
     assert ConsolidatingPhysics().check(physics.after, (0, 1), d.grasp).success
-    d, _ = _decide(make_scene(BARS), push_then_grasp=False, push_time_s=3.1)
+    d, _ = _decide(make_scene(BARS), then_grasp=False, push_time_s=3.1)
     assert d.status == "push" and d.grasp is None
 
 
@@ -159,13 +159,13 @@ def test_push_mog_grasps_when_pushing_does_not_pay_or_no_push_is_left():
     d, physics = _decide(make_scene(BARS), push_time_s=13.0)
     assert d.status == "grasp" and physics.pushes == []
     # Apart, but the grasp now lifts 1 and pushes are considered only below 1.
-    d, physics = _decide(make_scene(BARS), push_below=1)
+    d, physics = _decide(make_scene(BARS), below=1)
     assert d.status == "grasp" and physics.pushes == []
     # Apart, and the table's pushes are used up.
     d, physics = _decide(make_scene(BARS), pushes_left=0)
     assert d.status == "grasp" and physics.pushes == []
     # mog never pushes.
-    planner = GraspPlanner(ConsolidatingPhysics(), PlannerSpec().grasp_planner())
+    planner = GraspPlanner(ConsolidatingPhysics(), PlannerSpec().grasp)
     d = next_pick(make_scene(BARS), planner, PlannerSpec(mode="mog"), pushes_left=5)
     assert d.status == "grasp"
 
@@ -185,7 +185,7 @@ def test_a_push_the_lookahead_found_to_pay_is_replayed_with_no_physics_while_its
     scene = make_scene([*pair, *BARS])
     spec = PlannerSpec(mode="push-mog")
     physics = ConsolidatingPhysics()
-    planner = GraspPlanner(physics, spec.grasp_planner())
+    planner = GraspPlanner(physics, spec.grasp)
     d = next_pick(scene, planner, spec, np.random.default_rng(0), failures=(), pushes_left=5)
     assert d.status == "grasp" and set(d.expected) == {0, 1} and physics.pushes == []
     memory = lookahead(scene, d, planner, spec, np.random.default_rng(1), pushes_left=5)
@@ -194,7 +194,7 @@ def test_a_push_the_lookahead_found_to_pay_is_replayed_with_no_physics_while_its
 
     def decide(bars):
         again = ConsolidatingPhysics()
-        planner = GraspPlanner(again, spec.grasp_planner())
+        planner = GraspPlanner(again, spec.grasp)
         nd = next_pick(
             make_scene(bars), planner, spec, np.random.default_rng(2), failures=memory, pushes_left=5
         )
@@ -250,7 +250,7 @@ def test_the_controller_pushes_on_the_station_then_grasps_the_pair(tmp_path, the
         time_limit=60.0,
     )
     sc.planner.mode = "push-mog"
-    sc.planner.push_then_grasp = then_grasp
+    sc.planner.pushes.then_grasp = then_grasp
     run = run_pick(sc)
     assert len(run.pushes) == 1
     p = run.pushes[0]
@@ -302,8 +302,8 @@ def test_a_push_that_did_not_pay_is_not_simulated_again_while_nothing_moved():
 
     scene = make_scene([(b[0], b[1] + x, b[2], b[3]) for x in (-0.2, 0.0, 0.2) for b in BARS])
     physics = NothingJoins()
-    planner = GraspPlanner(physics, PlannerSpec().grasp_planner())
-    spec = PlannerSpec(mode="push-mog", push_checks=2)
+    planner = GraspPlanner(physics, PlannerSpec().grasp)
+    spec = PlannerSpec(mode="push-mog", pushes=PushConfig(checks=2))
 
     def decide(failures):
         physics.pushes = []

@@ -511,10 +511,14 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     from mog_drake.experiments import picking_eval
     from mog_drake.experiments.sweep import summary_only
 
-    text = "planner:\n  group_radius: 0.045\nverifier:\n  hold_time: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
+    text = "planner:\n  loop:\n    group_radius: 0.045\nverifier:\n  hold_time: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
     (task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0, scenario=text)
     sc = picking_eval.task_scenario(task)
-    assert (sc.planner.group_radius, sc.verifier.hold_time, sc.robot.max_joint_speed) == (0.045, 1.5, 2.0)
+    assert (sc.planner.loop.group_radius, sc.verifier.hold_time, sc.robot.max_joint_speed) == (
+        0.045,
+        1.5,
+        2.0,
+    )
     assert (sc.planner.mode, sc.planner.seed, sc.scene.seed, sc.scene.n_objects) == (
         "sog",
         4_000_000,
@@ -525,7 +529,7 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     (default_task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0)
     assert (
         "scenario" not in default_task
-        and picking_eval.task_scenario(default_task).planner.group_radius == 0.035
+        and picking_eval.task_scenario(default_task).planner.loop.group_radius == 0.035
     )
 
     from mog_drake.systems import pick
@@ -535,7 +539,7 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
         pick, "run_pick", lambda sc: seen.append(sc) or pick.PickRun(objects=5, shapes=["cube"] * 5)
     )
     record = picking_eval.picking_worker(task)
-    assert seen[0].planner.group_radius == 0.045 and record["summary"]["objects"] == 5
+    assert seen[0].planner.loop.group_radius == 0.045 and record["summary"]["objects"] == 5
     assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
 
     picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
@@ -545,7 +549,7 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     with summary_only(), pytest.raises(MogError, match="holds a sweep with scenario="):
         picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
     bad = tmp_path / "bad.yaml"
-    bad.write_text("planner:\n  group_radius: -1\n")
+    bad.write_text("planner:\n  loop:\n    group_radius: -1\n")
     assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "group_radius must be in" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()  # refused before anything was written
@@ -678,8 +682,8 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     from mog_drake.errors import MogError
 
     f = tmp_path / "bad.yaml"
-    f.write_text("planner:\n  method: fastest\n")
-    with pytest.raises(MogError, match="planner.method .*'fastest'"):
+    f.write_text("planner:\n  grasp:\n    method: fastest\n")
+    with pytest.raises(MogError, match="planner.grasp: unknown planner method 'fastest'"):
         load_scenario(str(f))
     f.write_text("robot:\n  reach: 0.0\n")
     with pytest.raises(MogError, match=r"robot.reach must be in \(0, 2\], got 0.0"):
@@ -687,14 +691,16 @@ def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
     f.write_text("verifier:\n  hold_time: 0\n")
     with pytest.raises(MogError, match="verifier.hold_time must be in"):
         load_scenario(str(f))
-    f.write_text("planner:\n  group_radius: 35\n")  # millimetres by mistake
+    f.write_text("planner:\n  loop:\n    group_radius: 35\n")  # millimetres by mistake
     with pytest.raises(MogError, match="group_radius must be in .* got 35"):
         load_scenario(str(f))
     f.write_text("verifier:\n  hold_window: 3.0\n")
     with pytest.raises(MogError, match=r"verifier.hold_window must be in \[0, hold_time = 2.5\] s, got 3.0"):
         load_scenario(str(f))
-    f.write_text("planner:\n  grouping: nearest\n")
-    with pytest.raises(MogError, match="planner.grouping must be one of radius, conditions, got 'nearest'"):
+    f.write_text("planner:\n  loop:\n    grouping: nearest\n")
+    with pytest.raises(
+        MogError, match="planner.loop.grouping must be one of radius, conditions, got 'nearest'"
+    ):
         load_scenario(str(f))
 
 

@@ -59,7 +59,7 @@ def bench_geometry(
                 "candidates": float(np.mean(n_cands)),
                 "generate_ms": 1e3 * float(np.median(gen_t)),
                 "filter_rank_ms": 1e3 * float(np.median(fil_t)),
-                # the same with the frictional diameter condition (planner.diameter_condition)
+                # the same with the frictional diameter condition (planner.grasp.diameter_condition)
                 "filter_rank_columns_ms": 1e3 * float(np.median(col_t)),
                 "total_ms": 1e3 * float(np.median(tot)),
                 "total_max_ms": 1e3 * float(np.max(tot)),

@@ -172,7 +172,7 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
     physics check lifted, plan again until the table is empty. "before": every group planned
     afresh before each decision and every partial lift reported; "after": the picking
     defaults (failed groups remembered, partial lifts of two or more). With ``budget`` (s),
-    "after" against "budget": the defaults with ``planner.decision_budget_s`` = budget.
+    "after" against "budget": the defaults with ``planner.loop.decision_budget_s`` = budget.
     Per table and setting: decisions, objects per decision, physics checks, planning CPU
     (this thread's) and the part of each decision's CPU past FREE_PLANNING_S summed (what
     the arm would wait with no lookahead)."""
@@ -190,7 +190,7 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
         for setting in settings:
             sc = Scenario()
             if setting == "budget":
-                sc.planner.decision_budget_s = budget
+                sc.planner.loop.decision_budget_s = budget
             planner = make_planner(sc)
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
