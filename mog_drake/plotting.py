@@ -129,6 +129,22 @@ def scene_figure(
     return fig
 
 
+def scene_picture(
+    scene, group, output, candidates: bool = False, positions: int = 70, orientations: int = 7, **figure
+) -> Path:
+    """`scene_figure` written to ``output``; with ``candidates`` every candidate of ``group``
+    coloured by verdict (its grid: ``positions`` by ``orientations``)."""
+    from mog_drake.geometry import candidate_grasps, evaluate_grasps, rank_grasp_cands
+
+    gripper = figure.pop("gripper", None) or GripperGeometry()
+    ev = order = None
+    if candidates:
+        polys = scene.polygons()
+        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, positions, orientations), gripper)
+        order = rank_grasp_cands(ev)
+    return save(scene_figure(scene, group, ev, order, gripper=gripper, **figure), output)
+
+
 def save(fig, path: str | Path) -> Path:
     path = Path(path)
     with atomic_path(path) as tmp:  # a killed write leaves the earlier figure whole
@@ -199,6 +215,26 @@ def candidate_table(ev: GraspEvaluation, order, limit: int = 20):
     except ImportError:
         return rows
     return pd.DataFrame(rows).set_index("rank")
+
+
+def write_diagram(diagram, out: str | Path) -> Path:
+    """A Diagram's top-level wiring to ``out``: Graphviz source (.dot), drawn by graphviz if
+    it is installed, else by matplotlib."""
+    import shutil
+    import subprocess
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    dot = diagram.GetGraphvizString(max_depth=1)
+    if out.suffix == ".dot":
+        out.write_text(dot)
+    elif shutil.which("dot"):
+        subprocess.run(
+            ["dot", f"-T{out.suffix[1:] or 'svg'}", "-o", str(out)], input=dot.encode(), check=True
+        )
+    else:
+        save(diagram_figure(diagram), out)
+    return out
 
 
 def diagram_figure(diagram, title: str | None = None):

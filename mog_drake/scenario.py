@@ -14,7 +14,7 @@ World frame = table frame: origin at the centre of the table top, z up.
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Union
 
@@ -33,6 +33,7 @@ from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import check_yaml, read_text
 from mog_drake.sim.models import ContactConfig, GripperPhysics
+from mog_drake.sim.realism import RealismConfig
 from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
@@ -167,6 +168,10 @@ class Scenario:
     # The simulated station: objects at rest out of reach of the gripper and of anything
     # moving leave the physics until something could reach them (`station.sleep`).
     sleep: bool = True
+    # How the simulated world differs from the planner's model (`mog_drake.sim.realism`):
+    # nothing by default; models/realistic.yaml sets a real cell's calibration, sensing and
+    # parameter errors.
+    realism: RealismConfig = field(default_factory=RealismConfig)
     hardware: HardwareSpec = field(default_factory=HardwareSpec)
 
     def perception_ignore(self) -> list[tuple[float, float, float, float]]:
@@ -231,6 +236,33 @@ def load_scenario(path: str | None = None) -> Scenario:
     if not path:
         return Scenario()
     return scenario_from_text(read_text(path, "scenario file"), str(path))
+
+
+def with_overrides(sc: Scenario, where: str = "", **given) -> Scenario:
+    """``sc`` with a run's overrides (None: keep): ``seed`` (the scene's and the planner's),
+    ``mode``, ``objects`` (a cluttered table), ``time_limit``, and on a hardware scenario only
+    ``robot_ip`` and ``dry_run``. ``where`` names ``sc`` in errors."""
+    seed, mode, objects = given.get("seed"), given.get("mode"), given.get("objects")
+    if seed is not None:
+        sc.scene = replace(sc.scene, seed=seed) if hasattr(sc.scene, "seed") else sc.scene
+        sc.planner = replace(sc.planner, seed=seed)
+    if mode:
+        sc.planner = replace(sc.planner, mode=mode)
+    if objects:
+        if not hasattr(sc.scene, "n_objects"):
+            raise MogError("--objects applies to a cluttered table (scene: !ClutteredScene)")
+        sc.scene = replace(sc.scene, n_objects=objects)
+    sc.time_limit = given.get("time_limit") or sc.time_limit
+    for key, flag in (("robot_ip", "--robot-ip"), ("dry_run", "--dry-run")):
+        if not given.get(key):
+            continue
+        if not sc.hardware.enabled:
+            raise MogError(
+                f"{flag} applies to a hardware scenario (hardware.enabled: true, e.g. models/hardware.yaml);"
+                f" {where or 'the default scenario'} is simulated"
+            )
+        sc.hardware = replace(sc.hardware, **{key: given[key]})
+    return sc
 
 
 def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
@@ -345,6 +377,9 @@ def check_scenario(sc: Scenario) -> None:
         if not math.isfinite(v):
             raise MogError(f"{key} must be a finite number, got {v!r}")
     sc.planner.check()
+    sc.realism.check()
+    if sc.realism.enabled and sc.hardware.enabled:
+        raise MogError("realism applies to the simulated cell; a hardware run meets the real one")
     _check_sources(sc)
     _in(sc.time_limit, "time_limit", 0, 1e6)
     r = sc.robot

@@ -21,7 +21,6 @@ speak of the group. With no non-group object in S this is exactly the paper's de
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -272,40 +271,3 @@ def _columns(polys, group, P, bi, mi, need, gripper, B) -> np.ndarray:
 def grasp_failure(ev: GraspEvaluation) -> np.ndarray:
     """GraspFailure() of Alg. 2: True where a necessary condition is violated (Eq. 7 or 9)."""
     return ~(ev.diameter_ok & ev.area_ok)
-
-
-def _mm(v) -> str:
-    return "-" if v is None else f"{v * 1e3:.2f} mm"
-
-
-def record_lines(rec: dict) -> list[str]:
-    """A candidate's `GraspEvaluation.record` as lines of text (mm, mm^2, deg)."""
-    g = rec["grasp"]
-    lines = [
-        f"grasp      x={g[0]:.4f} m  y={g[1]:.4f} m  theta={math.degrees(g[2]):.1f} deg",
-        f"h0         {rec['h0'] * 1e3:.2f} mm   (b_l {_mm(rec['b_l'])}, b_r {_mm(rec['b_r'])})",
-        f"h_fmin     {rec['h_fmin'] * 1e3:.2f} mm",
-        "areas      " + ", ".join(f"A_{k}={v * 1e6:.1f} mm^2" for k, v in rec["areas"].items()),
-        f"diameter_ok {rec['diameter_ok']}   area_ok {rec['area_ok']}   collision_free {rec['collision_free']}",
-        f"verdict    {rec['verdict']}",
-    ]
-    if rec["other_objects_in_S"]:
-        lines.append(f"also in S  {rec['other_objects_in_S']} (not in the group)")
-    return lines
-
-
-def candidate_rows(records: list[dict]) -> list[dict]:
-    """Ranked candidates' records as table rows (mm, mm^2, deg)."""
-    return [
-        {
-            "rank": r["rank"],
-            "x_mm": r["grasp"][0] * 1e3,
-            "y_mm": r["grasp"][1] * 1e3,
-            "theta_deg": math.degrees(r["grasp"][2]),
-            "h0_mm": r["h0"] * 1e3,
-            "A_T_mm2": r["area_total"] * 1e6,
-            "min_A_i_mm2": min(r["areas"].values()) * 1e6,
-            "verdict": r["verdict"],
-        }
-        for r in records
-    ]

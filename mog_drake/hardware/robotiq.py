@@ -269,10 +269,14 @@ class RobotiqClient:
         }
 
 
-def bench_check(ip: str, port: int, action: str, force: float, timeout: float, move_timeout: float) -> dict:
+def bench_check(
+    ip: str, port: int, action: str, force: float, timeout: float, move_timeout: float
+) -> tuple[dict, str]:
     """``action`` "open", "close" (after activating; each move waits for its end and says
     whether it stopped on an object) or "status" of the gripper at ``ip``:``port``; returns
-    its status. Every argument is checked before anything is sent."""
+    its status and a line saying it. Every argument is checked before anything is sent. A
+    fault, an ignored command, a move that does not end or a peer that talks nonsense raises
+    `HardwareFault`."""
     cal = RobotiqCalibration()
     try:
         cal.force_to_byte(force)
@@ -283,10 +287,14 @@ def bench_check(ip: str, port: int, action: str, force: float, timeout: float, m
     ) as g:
         if action in ("open", "close"):
             g.activate()
-            return g.move(cal.stroke if action == "open" else 0.0, force=force)
-        status = g.status()
-        g.check_fault("in the status read")
-        return status
+            status = g.move(cal.stroke if action == "open" else 0.0, force=force)
+        else:
+            status = g.status()
+            g.check_fault("in the status read")
+    return status, (
+        f"gripper at {ip}:{port}: {action}: {status['object_text']}; "
+        f"width {status['width'] * 1e3:.1f} mm (POS {status['pos']}, OBJ {status['object']}, no fault)"
+    )
 
 
 class RobotiqDriver(LeafSystem):

@@ -160,3 +160,28 @@ def cluttered_scene(
             raise MogError(f"could not place object {k} ({name}) without overlap: region too small")
     scene = Scene(objects, library, meta={"kind": "cluttered", "inventory": inventory})
     return scene.validate()
+
+
+def generate_scene(
+    kind: str,
+    seed: int,
+    library: ShapeLibrary | None = None,
+    row_class: int | None = None,
+    n_objects: int | None = None,
+    inventory: str = "isrr33",
+    clusters: int = 4,
+) -> Scene:
+    """A seeded ``kind`` scene: "row" (class ``row_class``, Sec. 7.2) or "cluttered"
+    (``n_objects`` of ``inventory`` in ``clusters`` clusters, Table 1), its seed in its meta."""
+    rng = np.random.default_rng(seed)
+    library = library or default_library()
+    if kind == "row":
+        if row_class is None:
+            raise MogError("--kind row needs --class N (1..7)")
+        scene = row_scene(row_class, rng, library)
+    else:
+        scene = cluttered_scene(
+            rng, library, inventory=inventory, n_objects=n_objects, params=ClutterParams(n_clusters=clusters)
+        )
+    scene.meta["seed"] = seed
+    return scene

@@ -229,6 +229,24 @@ class ShapeLibrary:
     inventories: dict[str, dict[str, int]] = field(default_factory=dict)
     bars: tuple[str, ...] = ("thin_bar", "thick_bar")
 
+    def report(self) -> tuple[dict, str]:
+        """Every shape's figures (a document, and a table in mm and g) and the inventories."""
+        from mog_drake.tables import format_table
+
+        recs = [self[n].to_record() for n in self.shapes]
+        rows = [
+            {
+                "name": r["name"],
+                "sides": r["sides"],
+                "height_mm": r["height"] * 1e3,
+                "mass_g": r["mass"] * 1e3,
+                "d_fmin_mm": r["d_fmin"] * 1e3,
+                "final_diameters_mm": ", ".join(f"{d * 1e3:.2f}" for d in r["final_diameters"]),
+            }
+            for r in recs
+        ]
+        return {"shapes": recs, "inventories": self.inventories}, format_table(rows)
+
     @classmethod
     def load(cls, *extra_files: str | Path, base: str | Path | None = DEFAULT_SHAPES_FILE) -> ShapeLibrary:
         """The default library, extended (and overridden by name) by ``extra_files``."""

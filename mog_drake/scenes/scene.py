@@ -55,6 +55,22 @@ class Scene:
     def __len__(self) -> int:
         return len(self.objects)
 
+    def chosen_group(self, given=None) -> tuple[tuple[int, ...], str]:
+        """The group to grasp and where it came from: ``given`` (--group) if any, checked
+        against the scene, else `default_group` for the default gripper."""
+        if not given:
+            from mog_drake.geometry import GripperGeometry
+
+            return self.default_group(GripperGeometry().w_g)
+        for g in given:
+            if not 0 <= g < len(self):
+                raise MogError(
+                    f"--group names object {g}, but the scene has {len(self)} objects (0..{len(self) - 1})"
+                )
+        if len(set(given)) != len(given):
+            raise MogError("--group names an object twice")
+        return tuple(given), "argument"
+
     def default_group(self, w_g: float) -> tuple[tuple[int, ...], str]:
         """(group, where it came from): the scene's own group ("scene"), else Alg. 1's first
         group for a gripper of stroke ``w_g`` ("largest")."""
@@ -154,8 +170,11 @@ class Scene:
             d["meta"] = self.meta
         return d
 
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None)
+
     def save(self, path: str | Path) -> None:
-        Path(path).write_text(yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None))
+        Path(path).write_text(self.to_yaml())
 
     @classmethod
     def from_dict(

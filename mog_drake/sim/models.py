@@ -191,16 +191,19 @@ def prism_points(shape) -> np.ndarray:
     return pts
 
 
-def add_prism(plant: MultibodyPlant, shape, name: str, contact: ContactConfig):
+def add_prism(
+    plant: MultibodyPlant, shape, name: str, contact: ContactConfig, friction: float = 1.0, mass: float = 1.0
+):
     """A free body for one library object: a compliant hydroelastic convex prism, mass and
     inertia from its density, its library colour. Body frame at the centre of the bottom face
-    (the body-frame origin of the polygon), so a table pose (x, y, theta) is X = (x, y, 0, yaw)."""
+    (the body-frame origin of the polygon), so a table pose (x, y, theta) is X = (x, y, 0, yaw).
+    ``friction`` and ``mass`` scale its friction coefficient and density (a world that is not
+    the model: `mog_drake.sim.realism`)."""
     instance = plant.AddModelInstance(name)
     convex = Convex(prism_points(shape), name)
-    body = plant.AddRigidBody(name, instance, CalcSpatialInertia(convex, shape.density))
-    plant.RegisterCollisionGeometry(
-        body, RigidTransform(), convex, name, _proximity(contact, contact.mu_object, True)
-    )
+    body = plant.AddRigidBody(name, instance, CalcSpatialInertia(convex, shape.density * mass))
+    mu = contact.mu_object * friction
+    plant.RegisterCollisionGeometry(body, RigidTransform(), convex, name, _proximity(contact, mu, True))
     plant.RegisterVisualGeometry(body, RigidTransform(), convex, name, np.array(shape.color))
     return body
 

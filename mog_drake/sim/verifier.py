@@ -14,6 +14,7 @@ from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 
+from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, objects_at_grasp, objects_in_reach
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import near_path, push_duration
@@ -385,3 +386,14 @@ class _Watch:
             return False
         up = p[:, 2] > self.lifted_z
         return bool(np.all(np.linalg.norm(p - s[0][1], axis=1)[up] < cfg.hold_drift))
+
+
+def verify_one(scenario, scene, group, grasp, force: float | None = None, meshcat=None) -> GraspResult:
+    """One grasp checked in physics with ``scenario``'s verifier and gripper (``force``: the
+    grip force limit per jaw instead, N), shown in ``meshcat`` if given."""
+    physics = scenario.gripper
+    if force is not None:
+        if not 0 < force <= 235:
+            raise MogError(f"--force must be in (0, 235] N (the 2F-85's range), got {force}")
+        physics = replace(physics, force_limit=force)
+    return DrakeVerifier(scenario.verifier, physics=physics, meshcat=meshcat).check(scene, group, grasp)

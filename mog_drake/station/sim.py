@@ -2,7 +2,10 @@
 MultibodyPlant, exporting the port contract (`mog_drake.station`). Its modelling is the grasp
 verifier's too (`mog_drake.sim.models`)."""
 
+from dataclasses import replace
+
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,
     CollisionFilterDeclaration,
@@ -10,13 +13,13 @@ from pydrake.geometry import (
     RenderEngineVtkParams,
 )
 from pydrake.lcm import DrakeLcm
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.multibody.tree import PdControllerGains, SpatialInertia
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
-from pydrake.systems.sensors import RgbdSensor
+from pydrake.systems.sensors import ImageDepth32F, RgbdSensor
 from pydrake.visualization import ApplyVisualizationConfig
 
 from mog_drake.errors import MogError
@@ -32,6 +35,7 @@ from mog_drake.sim.models import (
     filter_gripper_self_collisions,
     pose_to_transform,
 )
+from mog_drake.sim.realism import d435_rms
 from mog_drake.sim.ur5 import JOINT_NAMES, URDF_PATH, base_transform, palm_in_flange
 
 # Meshcat needs no LCM: an in-memory one keeps ApplyVisualizationConfig off the network.
@@ -105,6 +109,27 @@ class _GripperState(LeafSystem):
         x = self.get_input_port(0).Eval(context)
         (ql, qr), (vl, vr) = self._q, self._v
         output.SetFromVector([x[qr] - x[ql] - self._t, x[vr] - x[vl]])
+
+
+class _DepthNoise(LeafSystem):
+    """Depth image -> the same with a RealSense D435's per-pixel noise (`realism.d435_rms` at
+    each pixel's depth, times ``world.depth_noise``), drawn for the image's time."""
+
+    def __init__(self, world, width: int, height: int):
+        super().__init__()
+        self._world = world
+        blank = AbstractValue.Make(ImageDepth32F(width, height))
+        self.DeclareAbstractInputPort("depth", blank)
+        self.DeclareAbstractOutputPort("depth", lambda: blank.Clone(), self._calc)
+
+    def _calc(self, context, output) -> None:
+        z = np.array(self.get_input_port().Eval(context).data, dtype=np.float32)
+        ok = np.isfinite(z)
+        sigma = self._world.depth_noise * d435_rms(z[ok])
+        z[ok] += (self._world.depth_rng(context.get_time()).standard_normal(sigma.shape) * sigma).astype(
+            np.float32
+        )
+        output.get_mutable_value().mutable_data[:] = z
 
 
 def scene_from_spec(spec) -> Scene:
@@ -209,11 +234,15 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     (diagram, handles)."""
     scene = scene or scene_from_spec(scenario.scene)
     gripper = GripperGeometry()
+    # The world's own values: the planner's model unless scenario.realism draws others.
+    world = scenario.realism.draw(getattr(scenario.scene, "seed", 0), len(scene))
+    contact = scenario.contact
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(scenario.contact.plant, builder)
+    plant, scene_graph = AddMultibodyPlant(contact.plant, builder)
     x0, x1, y0, y1 = scenario.table
     X_table = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
-    add_table(plant, scenario.contact, size=(x1 - x0 + 0.6, y1 - y0 + 0.4), X_WT=X_table)
+    table_contact = replace(contact, mu_table=contact.mu_table * world.table_friction)
+    add_table(plant, table_contact, size=(x1 - x0 + 0.6, y1 - y0 + 0.4), X_WT=X_table)
     add_bin(
         plant,
         scenario.contact,
@@ -234,16 +263,21 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         )
     # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
     palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
-    plant.WeldFrames(plant.GetFrameByName("tool0", robot), palm.body_frame(), palm_in_flange())
+    X_FP = palm_in_flange() @ RigidTransform(world.tcp_offset)  # the tool centre point as built
+    plant.WeldFrames(plant.GetFrameByName("tool0", robot), palm.body_frame(), X_FP)
     plant.RegisterVisualGeometry(
         palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
     )
+    finger_contact = replace(contact, mu_finger=contact.mu_finger * world.finger_friction)
     (left, jl), (right, jr) = add_gripper_fingers(
-        plant, robot, palm, gripper, scenario.gripper, scenario.contact
+        plant, robot, palm, gripper, scenario.gripper, finger_contact
     )
     plant.set_gravity_enabled(robot, False)  # a position-controlled arm tracks its command
 
-    bodies = {i: add_prism(plant, scene.shape(i), f"object_{i}", scenario.contact) for i in range(len(scene))}
+    bodies = {
+        i: add_prism(plant, scene.shape(i), f"object_{i}", contact, world.friction[i], world.mass[i])
+        for i in range(len(scene))
+    }
     plant.Finalize()
     # The arm's links and gripper never collide with each other (self-collision is not
     # modelled; the motion plans keep clear), nor the base and shoulder with the table they stand on.
@@ -277,7 +311,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     builder.Connect(plant.get_state_output_port(), gs.get_input_port())
     builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
 
-    _add_camera(builder, scene_graph, scenario.camera)
+    _add_camera(builder, scene_graph, scenario.camera, world)
     builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")
     if meshcat is not None:
         ApplyVisualizationConfig(
@@ -299,16 +333,22 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     )
 
 
-def _add_camera(builder, scene_graph, cam) -> None:
-    """The overhead RGB-D camera (VTK), its images exported by the port contract's names."""
+def _add_camera(builder, scene_graph, cam, world) -> None:
+    """The overhead RGB-D camera (VTK), its images exported by the port contract's names; at
+    its pose as built (``world``'s calibration error) and with its depth noise."""
     scene_graph.AddRenderer(cam.renderer_name, MakeRenderEngineVtk(RenderEngineVtkParams()))
     color, depth = cam.MakeCameras()
-    sensor = builder.AddSystem(
-        RgbdSensor(scene_graph.world_frame_id(), RigidTransform(camera_pose(cam)), color, depth)
-    )
+    X_error = RigidTransform(RollPitchYaw(world.camera_tilt), [0.0, 0.0, 0.0])
+    X_WC = RigidTransform(world.camera_offset) @ RigidTransform(camera_pose(cam)) @ X_error
+    sensor = builder.AddSystem(RgbdSensor(scene_graph.world_frame_id(), X_WC, color, depth))
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
-    builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
+    if world.depth_noise > 0:
+        noise = builder.AddSystem(_DepthNoise(world, cam.width, cam.height))
+        builder.Connect(sensor.depth_image_32F_output_port(), noise.get_input_port())
+        builder.ExportOutput(noise.get_output_port(), "camera.depth_image")
+    else:
+        builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
     builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")
 
 
@@ -324,3 +364,23 @@ def frame_work_cell(meshcat, scenario: Scenario) -> None:
     size = max(max(xs) - min(xs), max(ys) - min(ys))
     meshcat.SetCameraPose(target + size * np.array([0.8, -0.85, 0.7]), target)
     meshcat.SetProperty("/Axes", "visible", False)
+
+
+def start_meshcat(show: bool):
+    """A Meshcat; with ``show`` its address on stderr, once. Drake's own INFO line about it
+    is kept off stderr."""
+    import logging
+    import sys
+
+    from pydrake.geometry import StartMeshcat
+
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)
+    try:
+        meshcat = StartMeshcat()
+    finally:
+        drake_log.setLevel(level)
+    if show:
+        print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
+    return meshcat

@@ -256,6 +256,10 @@ def run_pick(
     switch = sys.getswitchinterval()
     with stop_on_signals():  # SIGTERM and SIGHUP end the run through the finally below
         diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
+        if meshcat is not None:
+            from mog_drake.station.sim import frame_work_cell
+
+            frame_work_cell(meshcat, scenario)
         try:
             sys.setswitchinterval(0.001)
             return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
@@ -402,6 +406,15 @@ def attempt_line(k: int, a: dict) -> str:
     if a.get("lost"):
         line += "  -> dropped in transit (the gripper lost its hold)"
     return line + f"  [planning {a['planning_time']:.2f} s, {a['physics_checks']} physics checks]"
+
+
+def run_heading(sc: Scenario) -> str:
+    """What a run is about to do: the table and mode, or the arm it drives."""
+    hw = sc.hardware
+    if not hw.enabled:
+        return f"picking: {sc.scene}, mode {sc.planner.mode}"
+    dry = f" -- DRY RUN, commands are logged to {hw.command_log or 'stderr'}, not sent" if hw.dry_run else ""
+    return f"hardware: UR5 at {hw.robot_ip or '(no address)'}{dry}"
 
 
 def run_text(run: PickRun, summary: dict | None = None) -> str:
