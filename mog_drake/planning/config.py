@@ -4,7 +4,8 @@ defaults in one place. `mog_drake.scenario` nests them as ``planner``:
 * ``grasp``: GraspPlanner (Alg. 2) on one group, `GraspConfig`;
 * ``loop``: the picking loop around it (Alg. 1 and its extensions), `LoopConfig`;
 * ``pushes``: push-mog's consolidating pushes, `PushConfig`;
-* ``lookahead``: planning the next decision while the arm moves, `LookaheadConfig`.
+* ``lookahead``: planning the next decision while the arm moves, `LookaheadConfig`;
+* ``robust``: grasps verified in a perturbed world too, `RobustConfig`.
 """
 
 from dataclasses import dataclass, field
@@ -179,6 +180,33 @@ class LookaheadConfig:
 
 
 @dataclass
+class RobustConfig:
+    """Robust grasps (`mog_drake.planning.robust`): after the nominal check passes, ``samples``
+    checks of a perturbed world, of which ``required`` (0: all) must lift the group. Off (0
+    samples) by default, and in the faithful reproduction of the paper."""
+
+    samples: int = 0
+    required: int = 0
+    # The perturbations: what the planner is unsure of (docs/physics.md, the realistic cell).
+    shift_sigma: float = 0.003  # m per axis, one shift of every object: the camera's calibration
+    pose_sigma: float = 0.0005  # m per axis, each object's own: perception's fit
+    yaw_sigma_deg: float = 0.5  # each object's own
+    friction_spread: float = 0.3  # each friction coefficient x U(1 - s, 1 + s)
+    mass_spread: float = 0.2  # each object's mass x U(1 - s, 1 + s)
+    seed: int = 0
+
+    def check(self) -> None:
+        if not 0 <= self.samples <= 16 or not 0 <= self.required <= self.samples:
+            raise MogError("planner.robust: samples must be in [0, 16] and required in [0, samples]")
+        for key, most in (("shift_sigma", 0.02), ("pose_sigma", 0.02), ("yaw_sigma_deg", 10.0)):
+            if not 0 <= getattr(self, key) <= most:
+                raise MogError(f"planner.robust.{key} must be in [0, {most:g}], got {getattr(self, key)}")
+        for key in ("friction_spread", "mass_spread"):
+            if not 0 <= getattr(self, key) < 1:
+                raise MogError(f"planner.robust.{key} must be in [0, 1), got {getattr(self, key)}")
+
+
+@dataclass
 class PlannerSpec:
     # mog (Alg. 1) | sog (the single-object baseline) | push-mog (Alg. 1 with consolidating
     # pushes, an extension)
@@ -188,6 +216,7 @@ class PlannerSpec:
     loop: LoopConfig = field(default_factory=LoopConfig)
     pushes: PushConfig = field(default_factory=PushConfig)
     lookahead: LookaheadConfig = field(default_factory=LookaheadConfig)
+    robust: RobustConfig = field(default_factory=RobustConfig)
 
     def check(self) -> None:
         """Refuses a setting that would only fail once the robot is running."""
@@ -202,3 +231,4 @@ class PlannerSpec:
             raise MogError(f"planner.grasp: {e}") from None
         self.loop.check()
         self.pushes.check()
+        self.robust.check()

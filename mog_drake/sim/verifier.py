@@ -57,7 +57,9 @@ class _GroupSim:
         add_table(plant, config.contact, size=(x1 - x0 + 0.4, y1 - y0 + 0.4))
         self.bodies = {}
         for i in ids:
-            self.bodies[i] = add_prism(plant, scene.shape(i), f"object_{i}", config.contact)
+            self.bodies[i] = add_prism(
+                plant, scene.shape(i), f"object_{i}", config.contact, *verifier.scales(i)
+            )
         self.gripper = add_gantry_gripper(plant, gripper, physics, config.contact)
         plant.Finalize()
         filter_gripper_self_collisions(
@@ -108,14 +110,33 @@ class DrakeVerifier:
         gripper: GripperGeometry | None = None,
         physics: GripperPhysics | None = None,
         meshcat=None,
+        objects: dict | None = None,
     ):
         self.config = config or VerifierConfig()
         self.gripper = gripper or GripperGeometry()
         self.physics = physics or GripperPhysics()
         self.meshcat = meshcat
+        # Friction and mass scales of the objects, by object id ("friction", "mass": arrays):
+        # the model's own values (1) when None.
+        self.objects = objects
         self.config.check()
         self._sims: dict = {}  # key -> _GroupSim, least recently used first
         self._sim: _GroupSim | None = None
+
+    def scales(self, i: int) -> tuple[float, float]:
+        """Object ``i``'s friction and mass scales in this check's world."""
+        if self.objects is None:
+            return 1.0, 1.0
+        return float(self.objects["friction"][i]), float(self.objects["mass"][i])
+
+    def variant(self, scales: dict) -> "DrakeVerifier":
+        """The same check in a world of other friction and mass (`planning.robust`): objects'
+        by id, the jaws' (``finger``) and the table's scaled."""
+        c = self.config.contact
+        contact = replace(c, mu_finger=c.mu_finger * scales["finger"], mu_table=c.mu_table * scales["table"])
+        return DrakeVerifier(
+            replace(self.config, contact=contact), self.gripper, self.physics, objects=scales
+        )
 
     SIMS_KEPT = 8  # built plants kept for reuse ("grasp" bodies: candidates of a group share sets)
 

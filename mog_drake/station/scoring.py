@@ -80,3 +80,20 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
             where = "out of view"
         out[int(i)] = (where, [round(float(v), 3) for v in p])
     return out
+
+
+def station_state(handles, x, sleep, retired, t: float) -> str:
+    """The station's last good state ``x`` (the plant's positions and velocities), in a line
+    for a fault's report: the time, the fastest bodies and what was asleep or retired."""
+    plant = handles.plant
+    v = x[plant.num_positions() :]
+    speeds = []
+    for i, body in handles.bodies.items():
+        start = body.floating_velocities_start_in_v()
+        speeds.append((float(np.linalg.norm(v[start + 3 : start + 6])), i))
+    fastest = ", ".join(f"object {i} at {s:.3g} m/s" for s, i in sorted(speeds, reverse=True)[:3])
+    asleep = sorted(sleep.asleep) if sleep else []
+    return (
+        f"(station at t = {t:.3f} s, its last good state: fastest {fastest}; "
+        f"arm joint speeds up to {np.abs(v[:6]).max():.3g} rad/s; asleep {asleep}; retired {sorted(retired)})"
+    )

@@ -15,7 +15,7 @@ from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, camera_pose
 from mog_drake.station import MakeStation
-from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
+from mog_drake.station.scoring import BinRetirement, objects_in_bin, station_state, where_left
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
 from mog_drake.systems.pacer import WallClockPacer
@@ -31,11 +31,15 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
     from mog_drake.sim.verifier import DrakeVerifier
 
     spec = scenario.planner
-    planner = GraspPlanner(
-        verifier or DrakeVerifier(scenario.verifier, physics=scenario.gripper),
-        spec.grasp,
-        keep_out=scenario.keep_out(),
-    )
+    check = verifier or DrakeVerifier(scenario.verifier, physics=scenario.gripper)
+    if spec.robust.samples:
+        from mog_drake.planning.robust import RobustVerifier, perturbation_scales
+        from mog_drake.scenes.scene import MAX_OBJECTS
+
+        scales = [perturbation_scales(spec.robust, k, MAX_OBJECTS) for k in range(spec.robust.samples)]
+        variants = [check.variant(s) if verifier is None else verifier for s in scales]
+        check = RobustVerifier(check, variants, spec.robust)
+    planner = GraspPlanner(check, spec.grasp, keep_out=scenario.keep_out())
     # decision_budget_s is counted on the planning thread's clock (its CPU time, or the wall's).
     planner.clock = scenario.latency.clock.timer
     return planner
@@ -305,10 +309,16 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     while True:
-        if pacer is not None:
-            pacer.advance_to(ctx.get_time() + step)
-        else:
-            sim.AdvanceTo(ctx.get_time() + step)
+        before = handles.plant.GetPositionsAndVelocities(plant_ctx).copy() if scored else None
+        try:
+            if pacer is not None:
+                pacer.advance_to(ctx.get_time() + step)
+            else:
+                sim.AdvanceTo(ctx.get_time() + step)
+        except RuntimeError as e:
+            if before is None:
+                raise
+            raise RuntimeError(f"{e} {station_state(handles, before, sleep, gone, ctx.get_time())}") from None
         if retire:
             retire.update(plant_ctx)
         if sleep:

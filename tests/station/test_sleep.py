@@ -70,3 +70,17 @@ def test_a_table_cleared_with_resting_objects_asleep_gives_the_same_attempts():
         assert x["group"] == y["group"] and x["picked"] == y["picked"]
         assert np.allclose(x["grasp"], y["grasp"], atol=1e-3)
     assert a.in_bin == b.in_bin
+
+
+def test_a_station_fault_reports_its_last_good_state():
+    """A non-finite state ends the run (Drake's SceneGraph refuses it); the error then says
+    when, which bodies moved fastest just before, and what was asleep or retired."""
+    from mog_drake.station.scoring import station_state
+
+    sim, h, pc = still_station(Scenario(scene=ClutteredScene(seed=0, n_objects=4)))
+    body = h.bodies[2]
+    h.plant.SetFreeBodySpatialVelocity(pc, body, SpatialVelocity(np.zeros(3), [3.0, 0.0, 0.0]))
+    x = h.plant.GetPositionsAndVelocities(pc).copy()
+    line = station_state(h, x, None, [1], 12.5)
+    assert line.startswith("(station at t = 12.500 s") and "fastest object 2 at 3 m/s" in line
+    assert "asleep []; retired [1])" in line

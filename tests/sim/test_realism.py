@@ -1,0 +1,118 @@
+"""The realistic cell (`mog_drake.sim.realism`) and robust grasps (`mog_drake.planning.robust`)."""
+
+import numpy as np
+import pytest
+from conftest import make_scene
+
+from mog_drake.errors import MogError
+from mog_drake.planning.config import RobustConfig
+from mog_drake.planning.robust import RobustVerifier
+from mog_drake.scenario import ClutteredScene, Scenario, load_scenario
+from mog_drake.sim.realism import RealismConfig, d435_rms
+from mog_drake.sim.verifier import DrakeVerifier
+
+REAL = RealismConfig(
+    camera_offset=0.0015,
+    camera_tilt_deg=0.1,
+    depth_noise=1.0,
+    mass_spread=0.2,
+    friction_spread=0.3,
+    finger_friction_spread=0.3,
+    table_friction_spread=0.3,
+    tcp_offset=0.001,
+)
+
+
+def _same(a, b) -> bool:
+    return all(np.array_equal(getattr(a, k), getattr(b, k)) for k in vars(a))
+
+
+def test_the_realistic_cell_is_seeded_per_table_and_off_by_default():
+    assert _same(REAL.draw(3, 33), REAL.draw(3, 33))  # the same world, every mode on a table
+    assert not _same(REAL.draw(3, 33), REAL.draw(4, 33))  # another table, another world
+    other = RealismConfig(**{**vars(REAL), "seed": 1})
+    assert not _same(REAL.draw(3, 33), other.draw(3, 33))
+    w = REAL.draw(0, 33)
+    assert np.all(np.abs(w.mass - 1) <= 0.2) and np.all(np.abs(w.friction - 1) <= 0.3)
+    assert w.tcp_offset[2] == 0 and 0 < np.linalg.norm(w.tcp_offset) < 0.01
+    ideal = RealismConfig().draw(3, 33)
+    assert not RealismConfig().enabled and REAL.enabled
+    assert np.all(ideal.mass == 1) and np.all(ideal.friction == 1) and not ideal.camera_offset.any()
+    # The D435's RMS depth error at the camera's 0.8 m (Intel's tuning guide): about 2.3 mm.
+    assert d435_rms(0.8) == pytest.approx(0.0023, abs=1e-4)
+
+
+def test_realism_settings_are_checked_at_load(tmp_path):
+    f = tmp_path / "bad.yaml"
+    f.write_text("realism:\n  mass_spread: 1.5\n")
+    with pytest.raises(MogError, match=r"realism.mass_spread must be in \[0, 0.9\], got 1.5"):
+        load_scenario(str(f))
+    f.write_text("realism:\n  depth_noise: 1.0\nhardware:\n  enabled: true\n  robot_ip: 10.0.0.2\n")
+    with pytest.raises(MogError, match="realism applies to the simulated cell"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  robust:\n    samples: 4\n    required: 5\n")
+    with pytest.raises(MogError, match="planner.robust"):
+        load_scenario(str(f))
+    assert load_scenario("models/realistic.yaml").realism.enabled
+
+
+def test_the_station_builds_the_drawn_world_and_the_planner_sees_only_perception():
+    from mog_drake.station import MakeStation, render_still
+    from mog_drake.systems.pick import MakePickDiagram, make_planner
+    from mog_drake.systems.planner import PlannerSystem
+
+    sc = Scenario(scene=ClutteredScene(seed=2, n_objects=6))
+    sc.realism = REAL
+    d, h = MakeStation(sc)
+    w = REAL.draw(2, 6)
+    ctx = d.CreateDefaultContext()
+    pc = h.plant.GetMyContextFromRoot(ctx)
+    for i, body in h.bodies.items():
+        nominal = h.scene.shape(i).density * h.scene.shape(i).area * h.scene.shape(i).height
+        assert body.get_mass(pc) == pytest.approx(nominal * w.mass[i], rel=1e-6)
+    # Depth noise: the same image twice is the same; at another time it is not.
+    d1 = render_still(sc, d, ctx)[1].copy()
+    d2 = render_still(sc, d, ctx)[1].copy()
+    assert np.array_equal(d1, d2)
+    ctx.SetTime(1.0)
+    d3 = render_still(sc, d, ctx)[1].copy()
+    diff = (d3 - d1)[np.isfinite(d1)]
+    assert 0.002 < np.std(diff) / np.sqrt(2) < 0.0035
+    # Structure: the planner's one input is perception's scene; its physics check is the
+    # scenario's nominal model, not the station's world.
+    diagram, parts = MakePickDiagram(sc)
+    planner = parts["planner"]
+    assert isinstance(planner, PlannerSystem) and planner.num_input_ports() == 1
+    (src, port), = [v for (dst, _), v in diagram.connection_map().items() if dst is planner]
+    assert src is parts["perception"] and src.get_output_port(port).get_name() == "scene"
+    check = make_planner(sc).verifier
+    assert check.objects is None and check.config == sc.verifier
+
+
+def _off_centre_grasp():
+    """A lone cube gripped with its edge 1 mm inside the right jaw's open inner face."""
+    scene = make_scene([("small_yellow_cube", 0.0, 0.0, 0.0)], group=[0])
+    half_stroke = 0.0375  # the open jaws' inner faces, from the grasp centre
+    return scene, np.array([0.0125 + 0.001 - half_stroke, 0.0, 0.0])
+
+
+def test_a_grasp_that_fails_2_mm_off_is_rejected_by_the_robust_check_and_passed_by_the_plain_one():
+    sc = Scenario()
+    plain = DrakeVerifier(sc.verifier, physics=sc.gripper)
+    scene, grasp = _off_centre_grasp()
+    assert plain.check(scene, [0], grasp).success  # at the perceived pose it lifts
+    shifted = make_scene([("small_yellow_cube", 0.002, 0.0, 0.0)], group=[0])
+    assert not plain.check(shifted, [0], grasp).success  # 2 mm off, the open jaw lands on it
+    cfg = RobustConfig(samples=6, shift_sigma=0.003)
+    robust = RobustVerifier(plain, [plain.variant(_scales(cfg, k)) for k in range(6)], cfg)
+    r = robust.check(scene, [0], grasp)
+    assert not r.success and "not robust" in r.error
+    assert robust.check(scene, [0], grasp).success is False  # the same verdict asked again
+    centred = robust.check(scene, [0], np.array([0.0, 0.0, 0.0]))
+    assert centred.success and centred.lifted == [0]
+
+
+def _scales(cfg, k):
+    from mog_drake.planning.robust import perturbation_scales
+
+    return perturbation_scales(cfg, k, 10)
