@@ -58,6 +58,7 @@ def add_parsers(sub) -> None:
     sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--budget", type=float, help="replanning: the defaults against decision_budget_s = this")
+    sp.add_argument("--scenario", help="perception: a scenario's camera, perception and world (realism)")
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)
@@ -73,17 +74,10 @@ def cmd_eval(args) -> None:
 def cmd_bench(args) -> None:
     from mog_drake.experiments import bench
 
-    out = args.out or "out/bench_verifier"
+    given = dict(budget=args.budget or 0.0, tables=args.tables, out=args.out or "out/bench_verifier")
     emit(
         args,
         *bench.run(
-            args.what,
-            args.scenes,
-            args.seed,
-            args.toppled,
-            not args.json,
-            args.budget or 0.0,
-            args.tables,
-            out,
+            args.what, args.scenes, args.seed, args.toppled, not args.json, scenario=args.scenario, **given
         ),
     )

@@ -38,6 +38,7 @@ def pose_errors(perceived: Scene, truth: Scene) -> list[dict]:
                 "object": i,
                 "shape": o.shape,
                 "position": float(np.linalg.norm(centroid(perceived, j) - c_true)),
+                "offset": (centroid(perceived, j) - c_true).tolist(),  # m, x and y
                 "yaw": dyaw,
             }
         )

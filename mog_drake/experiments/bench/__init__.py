@@ -27,6 +27,7 @@ def run(
     budget: float = 0.0,
     tables: int = 3,
     out=None,
+    scenario: str | None = None,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""
     from mog_drake.progress import Progress
@@ -45,7 +46,7 @@ def run(
     elif what == "perception":
         from mog_drake.experiments.bench.station import bench_perception
 
-        rows = bench_perception(scenes, seed, toppled)
+        rows = bench_perception(scenes, seed, toppled, scenario=scenario)
         t = [r["time_s"] for r in rows]
         text = format_table(rows) + (
             f"\nper image: median {statistics.median(t):.3f} s, worst {max(t):.3f} s; "
