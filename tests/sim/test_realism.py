@@ -83,7 +83,7 @@ def test_the_station_builds_the_drawn_world_and_the_planner_sees_only_perception
     diagram, parts = MakePickDiagram(sc)
     planner = parts["planner"]
     assert isinstance(planner, PlannerSystem) and planner.num_input_ports() == 1
-    (src, port), = [v for (dst, _), v in diagram.connection_map().items() if dst is planner]
+    ((src, port),) = [v for (dst, _), v in diagram.connection_map().items() if dst is planner]
     assert src is parts["perception"] and src.get_output_port(port).get_name() == "scene"
     check = make_planner(sc).verifier
     assert check.objects is None and check.config == sc.verifier
