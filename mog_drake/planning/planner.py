@@ -42,6 +42,21 @@ def draws_at_random(method: str) -> bool:
     return not _RANKED[method] or method == "single"
 
 
+def _method_and_group(method: str, group, rng) -> tuple[str, tuple[int, ...]]:
+    """A plan's method, checked, and the objects it grasps: ``group``, or for ``single`` one
+    of them drawn with ``rng``."""
+    if method not in METHODS:
+        raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
+    group = tuple(int(g) for g in group)
+    if not group:
+        raise MogError("the group to grasp is empty")
+    if draws_at_random(method) and rng is None:
+        raise MogError(f"method '{method}' draws at random: pass a seeded numpy Generator")
+    if method == "single":
+        group = (group[int(rng.integers(len(group)))],)
+    return method, group
+
+
 def repeats(grasps, avoid) -> np.ndarray:
     """Which of ``grasps`` (N, 3) repeat one of ``avoid`` (M, 3): within 5 mm and 0.15 rad
     (closing axes modulo pi)."""
@@ -154,16 +169,7 @@ class GraspPlanner:
         goes on where the earlier one stopped. ``deadline``: a time of this thread's ``clock``
         (its CPU time unless set) past which no more candidates are simulated once a verified
         grasp is in hand: this plan's partial lift, or (``fallback``) the caller's."""
-        method = method or self.config.method
-        if method not in METHODS:
-            raise MogError(f"unknown planner method '{method}' (known: {', '.join(METHODS)})")
-        group = tuple(int(g) for g in group)
-        if not group:
-            raise MogError("the group to grasp is empty")
-        if draws_at_random(method) and rng is None:
-            raise MogError(f"method '{method}' draws at random: pass a seeded numpy Generator")
-        if method == "single":
-            group = (group[int(rng.integers(len(group)))],)
+        method, group = _method_and_group(method or self.config.method, group, rng)
         cfg = self.config
         t_start = time.perf_counter()
         polys = scene.polygons()

@@ -106,18 +106,7 @@ def _consider_pushes(
     if n_now >= spec.pushes.below:
         return
     tp, tg = spec.pushes.push_time_s, spec.pushes.grasp_time_s
-    polys = scene.polygons()
-    groups = ranked_groups(polys, planner.gripper, spec.loop.grouping, spec.loop.group_radius)
-    w_g = planner.gripper.w_g
-    options = []
-    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.pushes.reach, planner.keep_out):
-        joined = next((g for g in groups if p.toward in g and p.target not in g), (p.toward,))
-        group = tuple(sorted((p.target, *joined)))
-        if polys.d_fmin[list(group)].sum() > w_g:
-            continue
-        if len(group) / (tp + push_duration(p, spec.pushes.speed) + tg) > n_now / tg:
-            options.append((-len(group), p.distance, p, group))
-    options.sort(key=lambda o: o[:2])
+    options = _push_options(scene, planner, spec, n_now)
     best, checks, simulated, failed = None, 0, 0, []
     known = [f for f in memory or () if isinstance(f, FailedPush)]
     paid = [f for f in memory or () if isinstance(f, PaidPush)]
@@ -176,6 +165,25 @@ def _consider_pushes(
         d.shapes = tuple(scene.objects[i].shape for i in d.group)
         d.partial = d.last_resort = False
     d.planning_time += time.perf_counter() - t0
+
+
+def _push_options(scene, planner: GraspPlanner, spec: PlannerSpec, n_now: int) -> list[tuple]:
+    """The pushes worth simulating (see `_consider_pushes`), largest group first, then
+    shortest push: (-len(group), distance, push, group)."""
+    tp, tg = spec.pushes.push_time_s, spec.pushes.grasp_time_s
+    polys = scene.polygons()
+    groups = ranked_groups(polys, planner.gripper, spec.loop.grouping, spec.loop.group_radius)
+    w_g = planner.gripper.w_g
+    options = []
+    for p in push_candidates(polys, range(len(scene)), planner.gripper, spec.pushes.reach, planner.keep_out):
+        joined = next((g for g in groups if p.toward in g and p.target not in g), (p.toward,))
+        group = tuple(sorted((p.target, *joined)))
+        if polys.d_fmin[list(group)].sum() > w_g:
+            continue
+        if len(group) / (tp + push_duration(p, spec.pushes.speed) + tg) > n_now / tg:
+            options.append((-len(group), p.distance, p, group))
+    options.sort(key=lambda o: o[:2])
+    return options
 
 
 def _did_not_pay(known, p, group, around, now_rate: float, push_time: float) -> bool:

@@ -5,8 +5,9 @@ import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
 
+from mog_drake.camera import camera_sees
 from mog_drake.perception import within_reach
-from mog_drake.scenario import Scenario, camera_sees
+from mog_drake.scenario import Scenario
 
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:

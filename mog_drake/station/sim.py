@@ -22,10 +22,11 @@ from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
 from pydrake.systems.sensors import ImageDepth32F, RgbdSensor
 from pydrake.visualization import ApplyVisualizationConfig
 
+from mog_drake.camera import camera_intrinsics, camera_pose
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry
 from mog_drake.geometry.gripper import OPEN_WIDTH
-from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, camera_intrinsics, camera_pose
+from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile
 from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
 from mog_drake.sim.models import (
     add_bin,
@@ -229,6 +230,32 @@ def render_still(scenario: Scenario, station, context=None):
     return rgb, depth
 
 
+def _add_arm(plant, scenario: Scenario, world, gripper: GripperGeometry):
+    """The UR5 welded at its base, the palm on its flange (at the tool centre point as built:
+    ``world.tcp_offset``) and the two fingers. Returns (robot, palm, left, right), each finger
+    (body, joint)."""
+    contact = scenario.contact
+    robot = Parser(plant).AddModels(str(URDF_PATH))[0]
+    plant.WeldFrames(
+        plant.world_frame(), plant.GetFrameByName("base_link", robot), base_transform(scenario.robot.base)
+    )
+    # (GetJointActuatorIndices(instance) is empty before Finalize: look the motors up by name.)
+    for name in JOINT_NAMES:
+        plant.GetJointActuatorByName(f"{name}_motor", robot).set_controller_gains(
+            PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
+        )
+    # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
+    palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
+    X_FP = palm_in_flange() @ RigidTransform(world.tcp_offset)  # the tool centre point as built
+    plant.WeldFrames(plant.GetFrameByName("tool0", robot), palm.body_frame(), X_FP)
+    plant.RegisterVisualGeometry(
+        palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
+    )
+    finger_contact = replace(contact, mu_finger=contact.mu_finger * world.finger_friction)
+    fingers = add_gripper_fingers(plant, robot, palm, gripper, scenario.gripper, finger_contact)
+    return (robot, palm, *fingers)
+
+
 def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     """Builds the simulated station (see `mog_drake.station` for its ports). Returns
     (diagram, handles)."""
@@ -252,26 +279,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         wall=scenario.bin.wall,
     )
 
-    robot = Parser(plant).AddModels(str(URDF_PATH))[0]
-    plant.WeldFrames(
-        plant.world_frame(), plant.GetFrameByName("base_link", robot), base_transform(scenario.robot.base)
-    )
-    # (GetJointActuatorIndices(instance) is empty before Finalize: look the motors up by name.)
-    for name in JOINT_NAMES:
-        plant.GetJointActuatorByName(f"{name}_motor", robot).set_controller_gains(
-            PdControllerGains(p=scenario.robot.kp, d=scenario.robot.kd)
-        )
-    # The palm hangs off the flange: palm z (up, fingers below) opposite the tool axis.
-    palm = plant.AddRigidBody("palm", robot, SpatialInertia.SolidBoxWithMass(0.9, 0.09, 0.06, 0.08))
-    X_FP = palm_in_flange() @ RigidTransform(world.tcp_offset)  # the tool centre point as built
-    plant.WeldFrames(plant.GetFrameByName("tool0", robot), palm.body_frame(), X_FP)
-    plant.RegisterVisualGeometry(
-        palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
-    )
-    finger_contact = replace(contact, mu_finger=contact.mu_finger * world.finger_friction)
-    (left, jl), (right, jr) = add_gripper_fingers(
-        plant, robot, palm, gripper, scenario.gripper, finger_contact
-    )
+    robot, palm, (left, jl), (right, jr) = _add_arm(plant, scenario, world, gripper)
     plant.set_gravity_enabled(robot, False)  # a position-controlled arm tracks its command
 
     bodies = {

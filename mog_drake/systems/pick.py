@@ -10,10 +10,11 @@ from dataclasses import dataclass, field
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
+from mog_drake.camera import camera_pose
 from mog_drake.errors import HardwareFault, stop_on_signals
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.scenario import Scenario, camera_pose
+from mog_drake.scenario import Scenario
 from mog_drake.station import MakeStation
 from mog_drake.station.scoring import BinRetirement, objects_in_bin, station_state, where_left
 from mog_drake.systems.controller import ControllerSystem

@@ -6,16 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from mog_drake.scenario import (
-    ClutteredScene,
-    RowScene,
-    Scenario,
-    SceneFile,
-    camera_intrinsics,
-    camera_pose,
-    camera_sees,
-    load_scenario,
-)
+from mog_drake.camera import camera_intrinsics, camera_pose, camera_sees
+from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, load_scenario
 from mog_drake.station import (
     PORTS_IN,
     PORTS_OUT,

@@ -240,7 +240,7 @@ def test_arm_view_lets_the_next_image_be_taken_only_when_the_arm_hides_no_object
     """At the observe pose the arm hides nothing; with the jaws just above an object it hides
     that object but not one across the table; carrying, it must first lift what it holds
     above the heights perception looks at."""
-    from mog_drake.scenario import camera_pose
+    from mog_drake.camera import camera_pose
     from mog_drake.station import rendered_intrinsics
     from mog_drake.systems.motion import ArmMotion
     from mog_drake.systems.pick import arm_view
@@ -270,7 +270,7 @@ def test_the_change_check_sees_moved_and_uncovered_objects_not_a_millimetre(tmp_
     """Perceiver.changed_pixels between two depth images: the same table gives 0; a hexagon
     moved 1 mm gives 0 (its outline shifts by a pixel: no new plan for that); moved 6 mm,
     hundreds; an object found where the first image saw the arm over the table counts too."""
-    from mog_drake.scenario import camera_pose
+    from mog_drake.camera import camera_pose
     from mog_drake.station import MakeStation, render_still
 
     def depth_of(x):

@@ -25,8 +25,9 @@ def bench_perception(
     shares (the mean offset: the camera's calibration), ``fit_mm`` the median of the rest."""
     from dataclasses import replace
 
+    from mog_drake.camera import camera_pose
     from mog_drake.perception import pose_errors
-    from mog_drake.scenario import ClutteredScene, camera_pose, load_scenario
+    from mog_drake.scenario import ClutteredScene, load_scenario
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
     from mog_drake.station import MakeStation, render_still
 
