@@ -306,8 +306,10 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
 def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
     """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
     skipping the candidates already simulated (a remembered plan simulated none now); takes
-    the first grasp found, or with ``partial_lifts`` the first partial lift."""
+    the first grasp found, or with ``partial_lifts`` the first partial lift. A robust check
+    (`planning.robust`) is relaxed to its nominal one here."""
     deeper = copy.copy(planner)
+    deeper.verifier = getattr(planner.verifier, "nominal", planner.verifier)
     spent = 0
     for first in list(decision.plans):
         if spent >= LAST_RESORT_TOTAL:

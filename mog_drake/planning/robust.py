@@ -7,6 +7,10 @@ other: the failure memory and the lookahead take its verdicts as they are. No Dr
 Each perturbation is drawn from the grasp, its group and the poses it is checked at, so the
 same check asked again gives the same verdict; the k-th sample's friction and mass are the
 k-th variant verifier's own (built once, by the caller), so each keeps its built plants.
+
+Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
+nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
+person.
 """
 
 from __future__ import annotations
@@ -46,6 +50,11 @@ class RobustVerifier:
 
     def __getattr__(self, name):  # push(), meshcat, last_build_time ...: the nominal check's
         return getattr(self.base, name)
+
+    @property
+    def nominal(self):
+        """The check without perturbations: the last resort's, when no robust grasp is left."""
+        return self.base
 
     def perturbed(self, scene, group, grasp, sample: int):
         """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""

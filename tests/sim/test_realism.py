@@ -129,3 +129,29 @@ def test_perception_on_the_realistic_cell_reports_the_calibration_as_one_shared_
     assert 1.0 < real["shift_mm"] < 6.0 and real["fit_mm"] < 0.6
     (ideal,) = bench_perception(1, 0, repeats=1)
     assert ideal["shift_mm"] < 0.3 and ideal["pos_max_mm"] < 1.0
+
+
+def test_the_last_resort_takes_a_nominal_grasp_when_no_robust_one_is_left():
+    """A lone bar every perturbed world drops: no robust grasp, so Alg. 1's decision finds
+    none; its last resort plans with the nominal check and takes the grasp, rather than
+    leaving the bar to a person. Without the last resort the run would end on no_grasp."""
+    from mog_drake.planning.config import LoopConfig, PlannerSpec
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
+    from mog_drake.planning.protocol import GraspResult
+
+    class Lifts:
+        def check(self, scene, group, grasp):
+            return GraspResult(True, list(group))
+
+    class Drops:
+        def check(self, scene, group, grasp):
+            return GraspResult(False)
+
+    scene = make_scene([("thick_bar", 0.0, 0.0, 0.3)], group=[0])
+    robust = RobustVerifier(Lifts(), [Drops(), Drops()], RobustConfig(samples=2))
+    planner = GraspPlanner(robust, GraspConfig("gp", max_physics=2))
+    d = next_pick(scene, planner, PlannerSpec())
+    assert d.status == "grasp" and d.last_resort and d.group == (0,)
+    plain = next_pick(scene, planner, PlannerSpec(loop=LoopConfig(last_resort=False)))
+    assert plain.status == "no_grasp"
