@@ -13,10 +13,12 @@ from mog_drake.experiments.sweep import read_params
 def transit_drops(runs: list[dict]) -> dict:
     """The runs' objects dropped in transit: lifted (in the air as the arm left for the bin)
     but not in the bin when the attempt ended (`dropped_in_transit`). {"drop_attempts":
-    attempts that dropped some, "dropped": objects, "attempts": all attempts}."""
+    attempts that dropped some, "dropped": objects, "attempts": all attempts, and of the
+    failed attempts (none in the bin) "missed": those that lifted nothing, "lost": those that
+    dropped all they lifted}."""
     from mog_drake.systems.pick import dropped_in_transit
 
-    out = {"drop_attempts": 0, "dropped": 0, "attempts": 0}
+    out = {"drop_attempts": 0, "dropped": 0, "attempts": 0, "missed": 0, "lost": 0}
     for r in runs:
         for a in r.get("attempts", ()):
             out["attempts"] += 1
@@ -24,6 +26,8 @@ def transit_drops(runs: list[dict]) -> dict:
             if lost > 0:
                 out["drop_attempts"] += 1
                 out["dropped"] += lost
+            if a.get("picked") == 0:
+                out["lost" if lost > 0 else "missed"] += 1
     return out
 
 

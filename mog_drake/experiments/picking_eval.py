@@ -183,6 +183,7 @@ def summarize(results: list[dict], modes) -> dict:
         drops = transit_drops(runs)
         row["drop_attempts"], row["dropped"] = drops["drop_attempts"], drops["dropped"]
         row["all_attempts"] = drops["attempts"]
+        row["missed"], row["lost"] = drops["missed"], drops["lost"]
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
@@ -286,7 +287,8 @@ def losses_text(summary: dict) -> str:
             f"{r['mode']}: objects left {r.get('left_in_view', 0)} in view, "
             f"{r.get('left_out_of_view', 0)} out of view, {r.get('left_off_table', 0)} off the table; "
             f"dropped in transit {r.get('dropped', 0)} in {r.get('drop_attempts', 0)} of "
-            f"{r.get('all_attempts', 0)} attempts; runs ended: {ends}"
+            f"{r.get('all_attempts', 0)} attempts; failed attempts: {r.get('missed', 0)} lifted "
+            f"nothing, {r.get('lost', 0)} dropped all they lifted; runs ended: {ends}"
         )
         if "grouping_ceiling" in r:
             lines.append(

@@ -274,8 +274,9 @@ def test_two_picking_sweeps_are_compared_table_by_table():
     # Differences 30 and 10: mean 20, 95 % t half-width 12.706 * sd / sqrt(2) = 12.706 * 10.
     assert rows["pph"]["b_minus_a"] == pytest.approx(20.0) and rows["pph"]["ci"] == pytest.approx(127.06)
     drops = doc["transit_drops"]["mog"]
-    assert drops["a"] == {"drop_attempts": 1, "dropped": 1, "attempts": 3}
-    assert drops["b"] == {"drop_attempts": 1, "dropped": 3, "attempts": 3}
+    # A's failed attempt lifted nothing (missed); B's lifted three and dropped them all (lost).
+    assert drops["a"] == {"drop_attempts": 1, "dropped": 1, "attempts": 3, "missed": 1, "lost": 0}
+    assert drops["b"] == {"drop_attempts": 1, "dropped": 3, "attempts": 3, "missed": 0, "lost": 1}
     assert "A 1 (1 of 3 attempts); B 3 (1 of 3 attempts)" in picking_compare.compare_text(doc)
     with pytest.raises(MogError, match="share no table"):
         picking_compare.compare(a[2:3], b)
