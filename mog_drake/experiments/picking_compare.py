@@ -172,9 +172,24 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
                 f"per_grasp_{b_mode}": sb["objects_per_success"],
                 f"picked_{b_mode}": sb["picked_pct"],
                 "pushes": sb.get("pushes", 0),
+                # B's grasps of one object, by why no push set up more (`lone_reason`).
+                **{f"lone_{k.replace(' ', '_')}": n for k, n in lone_reasons([r]).items()},
             }
         )
     return {**paired, "per_table": tables}
+
+
+def lone_reasons(runs: list[dict]) -> dict:
+    """The push-mog runs' grasps of one object by why no push set up more: {reason: n},
+    every reason of `LONE_REASONS`; empty where none is recorded (other modes, and runs from
+    before it was)."""
+    from mog_drake.planning.pushing import LONE_REASONS
+
+    runs = [r for r in runs if r["mode"].startswith("push-mog") and "lone_grasps" in r["summary"]]
+    if not runs:
+        return {}
+    found = [a["lone"] for r in runs for a in r.get("attempts", ()) if a.get("lone")]
+    return {k: found.count(k) for k in LONE_REASONS}
 
 
 def _wait_pct(summary: dict) -> float:

@@ -14,6 +14,7 @@ from mog_drake.experiments.picking_compare import (
     compare,
     compare_modes,
     compare_text,
+    lone_reasons,
     transit_drops,
 )
 from mog_drake.experiments.stats import mean_ci
@@ -184,6 +185,8 @@ def summarize(results: list[dict], modes) -> dict:
         row["drop_attempts"], row["dropped"] = drops["drop_attempts"], drops["dropped"]
         row["all_attempts"] = drops["attempts"]
         row["missed"], row["lost"] = drops["missed"], drops["lost"]
+        if lone := lone_reasons(runs):
+            row["lone"] = lone
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
@@ -290,6 +293,11 @@ def losses_text(summary: dict) -> str:
             f"{r.get('all_attempts', 0)} attempts; failed attempts: {r.get('missed', 0)} lifted "
             f"nothing, {r.get('lost', 0)} dropped all they lifted; runs ended: {ends}"
         )
+        if r.get("lone"):
+            lines.append(
+                f"{r['mode']}: {sum(r['lone'].values())} grasps of one object, no push setting up more: "
+                + ", ".join(f"{k} {n}" for k, n in r["lone"].items())
+            )
         if "grouping_ceiling" in r:
             lines.append(
                 f"{r['mode']}: grouping ceiling {r['grouping_ceiling']:.2f} "

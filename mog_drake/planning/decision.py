@@ -187,6 +187,8 @@ class PickDecision:
     # ``now``: the objects the grasp that was possible without the push lifted.
     push: Push | None = None
     now: int = 0
+    # push-mog, a grasp of one object: why no push set up more (`pushing.lone_reason`).
+    lone: str = ""
     after: Scene | None = None  # the table the simulated push left (the lookahead plans on it)
 
     def to_dict(self) -> dict:
@@ -208,4 +210,5 @@ class PickDecision:
             "merged": self.merged,
             "waited": self.waited,
             "from_board": self.from_board,
+            **({"lone": self.lone} if self.lone else {}),
         }

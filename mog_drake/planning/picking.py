@@ -66,7 +66,7 @@ from mog_drake.planning.decision import (
     _unknown,
 )
 from mog_drake.planning.planner import GraspPlanner, PlanResult
-from mog_drake.planning.pushing import _consider_pushes
+from mog_drake.planning.pushing import _consider_pushes, lone_reason
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
 # Before a decision gives up ("no_grasp": the run would end with objects on the table), every
@@ -211,6 +211,7 @@ def _push_mog(
             d.merged |= bool(late.new())
             memory = tuple(failures) + tuple(_unknown(late.got, failures))
         _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
+    d.lone = lone_reason(scene, planner, spec, d, pushes_left)
     return d
 
 

@@ -186,6 +186,28 @@ def _push_options(scene, planner: GraspPlanner, spec: PlannerSpec, n_now: int) -
     return options
 
 
+LONE_REASONS = ("too far", "blocked", "not worth it", "out of pushes")
+
+
+def lone_reason(scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, pushes_left: int) -> str:
+    """push-mog: why decision ``d``, a grasp of one object, was not a push that set up more:
+    "out of pushes" (none left for this table), "too far" (no other object within
+    ``pushes.reach``), "blocked" (others within reach, but no push between it and any of
+    them keeps the jaws clear of the objects and of the bin), or "not worth it" (pushes
+    exist, and none was expected to pay, or none paid in physics). "" for any other decision."""
+    if d.status != "grasp" or d.unrecognised or len(d.expected) > 1 or len(d.group) != 1:
+        return ""
+    if pushes_left <= 0 or spec.pushes.checks <= 0:
+        return "out of pushes"
+    i = d.group[0]
+    polys = scene.polygons()
+    dist = np.linalg.norm(polys.centers - polys.centers[i], axis=1)
+    if not np.any((dist > 0) & (dist <= spec.pushes.reach)):
+        return "too far"
+    pushes = push_candidates(polys, range(len(scene)), planner.gripper, spec.pushes.reach, planner.keep_out)
+    return "not worth it" if any(i in (p.target, p.toward) for p in pushes) else "blocked"
+
+
 def _did_not_pay(known, p, group, around, now_rate: float, push_time: float) -> bool:
     """Whether push ``p`` of ``group`` is a remembered `FailedPush` (same objects, each where
     it was) that would not pay now either: it failed, or what its grasp lifted over

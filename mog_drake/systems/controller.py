@@ -224,6 +224,7 @@ class ControllerSystem(LeafSystem):
                 "waited": dec.waited,
                 "from_board": dec.from_board,
                 **({"unrecognised": True} if dec.unrecognised else {}),
+                **({"lone": dec.lone} if dec.lone else {}),
             }
         )
 

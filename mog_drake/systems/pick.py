@@ -213,6 +213,7 @@ class PickRun:
             "pushes": len(self.pushes),
             "push_time_s": self.push_time,
             "push_gain": self.push_gain(),
+            "lone_grasps": sum(bool(a.get("lone")) for a in self.attempts),  # push-mog: see lone_reason
             "wall_time_s": self.wall_time,
             "finished": self.finished,
             "left_in_view": sum(w == "in view" for w, _ in self.left.values()),

@@ -469,3 +469,15 @@ def test_the_cell_bench_times_each_systems_callbacks_apart():
     Simulator(builder.Build()).AdvanceTo(0.45)  # 5 publishes
     assert timers.total["Source"] == pytest.approx(0.10, rel=0.3)
     assert timers.total["Reader"] == pytest.approx(0.05, rel=0.3)
+
+
+def test_push_mog_lone_grasps_are_counted_by_reason_only_where_recorded():
+    from mog_drake.experiments.picking_compare import lone_reasons
+
+    run = _picking_record(
+        0, "push-mog", 1.0, 800.0, [{"lone": "too far"}, {"lone": "too far"}, {}, {"lone": "blocked"}]
+    )
+    run["summary"]["lone_grasps"] = 3
+    assert lone_reasons([run]) == {"too far": 2, "blocked": 1, "not worth it": 0, "out of pushes": 0}
+    old = _picking_record(1, "push-mog", 1.0, 800.0, [{}])  # a run from before: nothing recorded
+    assert lone_reasons([old]) == {} and lone_reasons([_picking_record(0, "mog", 1.0, 800.0)]) == {}

@@ -155,15 +155,20 @@ def test_push_mog_grasps_when_pushing_does_not_pay_or_no_push_is_left():
     together = make_scene([("thick_bar", 0.0, -0.009, 0.0), ("thick_bar", 0.0, 0.009, 0.0)])
     d, physics = _decide(together)
     assert d.status == "grasp" and set(d.expected) == {0, 1} and physics.pushes == []
+    assert d.lone == ""  # a grasp of two
     # Apart, but a push costs as much as 2 grasps: 2 / (13 + 6.5) < 1 / 6.5.
     d, physics = _decide(make_scene(BARS), push_time_s=13.0)
-    assert d.status == "grasp" and physics.pushes == []
+    assert d.status == "grasp" and physics.pushes == [] and d.lone == "not worth it"
     # Apart, but the grasp now lifts 1 and pushes are considered only below 1.
     d, physics = _decide(make_scene(BARS), below=1)
     assert d.status == "grasp" and physics.pushes == []
     # Apart, and the table's pushes are used up.
     d, physics = _decide(make_scene(BARS), pushes_left=0)
-    assert d.status == "grasp" and physics.pushes == []
+    assert d.status == "grasp" and physics.pushes == [] and d.lone == "out of pushes"
+    # Farther apart than a push may go (pushes.reach, 12 cm).
+    far = make_scene([("thick_bar", 0.0, -0.08, 0.0), ("thick_bar", 0.0, 0.08, 0.0)])
+    d, physics = _decide(far)
+    assert d.status == "grasp" and physics.pushes == [] and d.lone == "too far"
     # mog never pushes.
     planner = GraspPlanner(ConsolidatingPhysics(), PlannerSpec().grasp)
     d = next_pick(make_scene(BARS), planner, PlannerSpec(mode="mog"), pushes_left=5)
