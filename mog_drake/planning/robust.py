@@ -1,7 +1,8 @@
 """Robust grasps (the paper's future work): a grasp is verified only if it lifts its group in
 the nominal check and in at least ``required`` of ``samples`` checks of a perturbed world:
 every object's perceived pose moved (a shift common to all, the camera's calibration, and one
-of each, the fit's), and friction and mass drawn within their ranges. A Verifier like any
+of each, the fit's), and friction and mass within their ranges, the first sample at the
+ends of the ranges that make holding hardest, the others drawn. A Verifier like any
 other: the failure memory and the lookahead take its verdicts as they are. No Drake import.
 
 Each perturbation is drawn from the grasp, its group and the poses it is checked at, so the
@@ -27,9 +28,18 @@ from mog_drake.scenes import SceneObject
 
 def perturbation_scales(config: RobustConfig, sample: int, n_objects: int) -> dict:
     """The ``sample``-th variant's friction and mass scales: each object's (per object id),
-    the jaws' and the table's, uniform within the configured spreads."""
-    rng = np.random.default_rng([config.seed, sample, 0xF1C])
+    the jaws' and the table's. Sample 0 is the world hardest to hold in: every object as
+    slippery and heavy as the spreads allow, the jaws' pads as slippery (the table as
+    modelled). The others are drawn uniformly within the spreads."""
     f, m = config.friction_spread, config.mass_spread
+    if sample == 0:
+        return {
+            "friction": np.full(n_objects, 1 - f),
+            "mass": np.full(n_objects, 1 + m),
+            "finger": 1 - f,
+            "table": 1.0,
+        }
+    rng = np.random.default_rng([config.seed, sample, 0xF1C])
     return {
         "friction": rng.uniform(1 - f, 1 + f, n_objects),
         "mass": rng.uniform(1 - m, 1 + m, n_objects),

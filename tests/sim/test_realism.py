@@ -110,6 +110,9 @@ def test_a_grasp_that_fails_2_mm_off_is_rejected_by_the_robust_check_and_passed_
     assert robust.check(scene, [0], grasp).success is False  # the same verdict asked again
     centred = robust.check(scene, [0], np.array([0.0, 0.0, 0.0]))
     assert centred.success and centred.lifted == [0]
+    # The first perturbed world is the hardest to hold in: slippery, heavy objects and pads.
+    worst = _scales(cfg, 0)
+    assert np.all(worst["friction"] == 0.7) and np.all(worst["mass"] == 1.2) and worst["finger"] == 0.7
 
 
 def _scales(cfg, k):
