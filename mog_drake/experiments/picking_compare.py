@@ -165,6 +165,7 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
                 "table": r["scene"],
                 f"pph_{a_mode}": sa["pph"],
                 f"pph_{b_mode}": sb["pph"],
+                f"pph_no_wait_{b_mode}": _robot_pph(sb),  # its ceiling: had the arm never waited
                 "pph_ratio": sb["pph"] / sa["pph"] if sa["pph"] else float("nan"),
                 f"wait_pct_{b_mode}": _wait_pct(sb),
                 "robot_pph_ratio": _robot_pph(sb) / _robot_pph(sa) if _robot_pph(sa) else float("nan"),
