@@ -92,7 +92,8 @@ def station_state(handles, x, sleep, retired, t: float) -> str:
     for i, body in handles.bodies.items():
         start = body.floating_velocities_start_in_v()
         speeds.append((float(np.linalg.norm(v[start + 3 : start + 6])), i))
-    fastest = ", ".join(f"object {i} at {s:.3g} m/s" for s, i in sorted(speeds, reverse=True)[:3])
+    speeds.sort(key=lambda si: -np.inf if np.isnan(si[0]) else -si[0])  # non-finite first
+    fastest = ", ".join(f"object {i} at {s:.3g} m/s" for s, i in speeds[:3])
     asleep = sorted(sleep.asleep) if sleep else []
     return (
         f"(station at t = {t:.3f} s, its last good state: fastest {fastest}; "

@@ -72,9 +72,13 @@ def test_a_table_cleared_with_resting_objects_asleep_gives_the_same_attempts():
     assert a.in_bin == b.in_bin
 
 
-def test_a_station_fault_reports_its_last_good_state():
+def test_a_station_fault_reports_its_last_good_state(monkeypatch):
     """A non-finite state ends the run (Drake's SceneGraph refuses it); the error then says
-    when, which bodies moved fastest just before, and what was asleep or retired."""
+    when, which bodies moved fastest just before, and what was asleep or retired. Here an
+    object's velocity is set to NaN a second into a run: the solver fails in the next step."""
+    import pytest
+
+    from mog_drake.station import scoring
     from mog_drake.station.scoring import station_state
 
     sim, h, pc = still_station(Scenario(scene=ClutteredScene(seed=0, n_objects=4)))
@@ -84,3 +88,22 @@ def test_a_station_fault_reports_its_last_good_state():
     line = station_state(h, x, None, [1], 12.5)
     assert line.startswith("(station at t = 12.500 s") and "fastest object 2 at 3 m/s" in line
     assert "asleep []; retired [1])" in line
+
+    update = scoring.BinRetirement.update
+
+    def fling(self, plant_context):
+        update(self, plant_context)
+        t = plant_context.get_time()
+        if 1.0 <= t:
+            v = [50.0, 0.0, 0.0] if t < 1.005 else [np.nan, 0.0, 0.0]
+            self.plant.SetFreeBodySpatialVelocity(
+                plant_context, self.bodies[1], SpatialVelocity(np.zeros(3), v)
+            )
+
+    monkeypatch.setattr(scoring.BinRetirement, "update", fling)
+    sc = Scenario(scene=ClutteredScene(seed=0, n_objects=3), time_limit=20.0)
+    sc.latency.mode = "fixed"
+    with pytest.raises(
+        RuntimeError, match=r"\(station at t = 1\.0\d+ s, its last good state: fastest object 1 at nan m/s"
+    ):
+        run_pick(sc)
