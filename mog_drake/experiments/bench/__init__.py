@@ -52,7 +52,9 @@ def run(
             f"\nper image: median {statistics.median(t):.3f} s, worst {max(t):.3f} s; "
             f"found {sum(r['found'] for r in rows)}, missed {sum(r['missed'] for r in rows)}, "
             f"extra {sum(r['extra'] for r in rows)}; worst position {max(r['pos_max_mm'] for r in rows):.2f} mm, "
-            f"worst yaw {max(r['yaw_max_deg'] for r in rows):.2f} deg"
+            f"worst yaw {max(r['yaw_max_deg'] for r in rows):.2f} deg; the shift all objects share "
+            f"{statistics.median(r['shift_mm'] for r in rows):.2f} mm (median table), each one's fit "
+            f"{statistics.median(r['fit_mm'] for r in rows):.2f} mm"
         )
         return {what: rows}, text
     elif what == "station":
