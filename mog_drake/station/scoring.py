@@ -95,7 +95,8 @@ def station_state(handles, x, sleep, retired, t: float) -> str:
     speeds.sort(key=lambda si: -np.inf if np.isnan(si[0]) else -si[0])  # non-finite first
     fastest = ", ".join(f"object {i} at {s:.3g} m/s" for s, i in speeds[:3])
     asleep = sorted(sleep.asleep) if sleep else []
+    arm = np.abs(plant.GetVelocitiesFromArray(handles.robot, v)[:6]).max()  # the UR5's six joints
     return (
         f"(station at t = {t:.3f} s, its last good state: fastest {fastest}; "
-        f"arm joint speeds up to {np.abs(v[:6]).max():.3g} rad/s; asleep {asleep}; retired {sorted(retired)})"
+        f"arm joint speeds up to {arm:.3g} rad/s; asleep {asleep}; retired {sorted(retired)})"
     )
