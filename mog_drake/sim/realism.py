@@ -35,6 +35,19 @@ def d435_rms(z):
     return np.asarray(z) ** 2 * D435_SUBPIXEL / (D435_FOCAL_PX * D435_BASELINE)
 
 
+# Each difference of the world from the model, and the most it may be set to.
+REALISM_LIMITS = {
+    "camera_offset": 0.05,
+    "camera_tilt_deg": 5.0,
+    "depth_noise": 10.0,
+    "mass_spread": 0.9,
+    "friction_spread": 0.9,
+    "finger_friction_spread": 0.9,
+    "table_friction_spread": 0.9,
+    "tcp_offset": 0.02,
+}
+
+
 @dataclass
 class RealismConfig:
     """How far the simulated world is from the planner's model (0 everywhere: the ideal cell,
@@ -54,32 +67,10 @@ class RealismConfig:
 
     @property
     def enabled(self) -> bool:
-        return any(
-            getattr(self, k) > 0
-            for k in (
-                "camera_offset",
-                "camera_tilt_deg",
-                "depth_noise",
-                "mass_spread",
-                "friction_spread",
-                "finger_friction_spread",
-                "table_friction_spread",
-                "tcp_offset",
-            )
-        )
+        return any(getattr(self, k) > 0 for k in REALISM_LIMITS)
 
     def check(self) -> None:
-        limits = {
-            "camera_offset": 0.05,
-            "camera_tilt_deg": 5.0,
-            "depth_noise": 10.0,
-            "mass_spread": 0.9,
-            "friction_spread": 0.9,
-            "finger_friction_spread": 0.9,
-            "table_friction_spread": 0.9,
-            "tcp_offset": 0.02,
-        }
-        for key, most in limits.items():
+        for key, most in REALISM_LIMITS.items():
             v = getattr(self, key)
             if not (math.isfinite(v) and 0 <= v <= most):
                 raise MogError(f"realism.{key} must be in [0, {most:g}], got {v}")

@@ -31,6 +31,7 @@ def bench_perception(
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
     from mog_drake.station import MakeStation, render_still
 
+    base = load_scenario(scenario)
     rows = []
     for k in range(seed, seed + tables):
         scene = cluttered_scene(np.random.default_rng(k))
@@ -45,7 +46,7 @@ def bench_perception(
                 laid += 1
             except MogError:
                 pass
-        sc = replace(load_scenario(scenario), scene=ClutteredScene(seed=k))
+        sc = replace(base, scene=ClutteredScene(seed=k))
         d, h = MakeStation(sc, scene)
         rgb, depth = render_still(sc, d)
         perceiver = sc.perceiver()
