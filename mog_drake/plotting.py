@@ -134,14 +134,12 @@ def scene_picture(
 ) -> Path:
     """`scene_figure` written to ``output``; with ``candidates`` every candidate of ``group``
     coloured by verdict (its grid: ``positions`` by ``orientations``)."""
-    from mog_drake.geometry import candidate_grasps, evaluate_grasps, rank_grasp_cands
+    from mog_drake.geometry import ranked_candidates
 
     gripper = figure.pop("gripper", None) or GripperGeometry()
     ev = order = None
     if candidates:
-        polys = scene.polygons()
-        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, positions, orientations), gripper)
-        order = rank_grasp_cands(ev)
+        ev, order = ranked_candidates(scene.polygons(), group, gripper, positions, orientations)
     return save(scene_figure(scene, group, ev, order, gripper=gripper, **figure), output)
 
 

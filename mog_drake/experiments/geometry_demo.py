@@ -7,12 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from mog_drake import plotting
-from mog_drake.geometry import (
-    GripperGeometry,
-    candidate_grasps,
-    evaluate_grasps,
-    rank_grasp_cands,
-)
+from mog_drake.geometry import GripperGeometry, ranked_candidates
 from mog_drake.scenes import cluttered_scene, row_scene
 from mog_drake.tables import format_table
 
@@ -29,9 +24,7 @@ def geometry_demo(out, seed: int = 0) -> tuple[dict, str]:
     ):
         scene.save(out / f"{name}.yaml")
         group, source = scene.default_group(gripper.w_g)
-        polys = scene.polygons()
-        ev = evaluate_grasps(polys, group, candidate_grasps(polys, group), gripper)
-        order = rank_grasp_cands(ev)
+        ev, order = ranked_candidates(scene.polygons(), group, gripper)
         png = plotting.save(
             plotting.scene_figure(
                 scene,

@@ -8,6 +8,7 @@ from mog_drake.geometry.candidates import (
     gen_grasp_cands,
     hull_positions,
     rank_grasp_cands,
+    ranked_candidates,
 )
 from mog_drake.geometry.conditions import (
     AREA_EPS,
@@ -53,6 +54,7 @@ __all__ = [
     "hull_positions",
     "jaw_collision_free",
     "rank_grasp_cands",
+    "ranked_candidates",
     "rank_obj_groups",
     "ranked_groups",
     "transform",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mog_drake.geometry.conditions import GraspEvaluation, PolygonSet, jaw_collision_free
+from mog_drake.geometry.conditions import GraspEvaluation, PolygonSet, evaluate_grasps, jaw_collision_free
 from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.geometry.polygon import axis_gap, convex_hull_ccw, polygon_area
 
@@ -129,3 +129,16 @@ def rank_grasp_cands(ev: GraspEvaluation) -> np.ndarray:
     Ties keep generation order (stable sort), so the ranking is deterministic.
     """
     return np.argsort(-ev.area_total, kind="stable")
+
+
+def ranked_candidates(
+    polys: PolygonSet,
+    group,
+    gripper: GripperGeometry | None = None,
+    n_positions: int = 70,
+    n_orientations: int = 7,
+) -> tuple[GraspEvaluation, np.ndarray]:
+    """Every Np x Ntheta candidate of ``group``, colliding ones included, evaluated, and their
+    ranking by total intersection area (`rank_grasp_cands`): what the tools show and draw."""
+    ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, n_positions, n_orientations), gripper)
+    return ev, rank_grasp_cands(ev)

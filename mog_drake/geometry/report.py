@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from mog_drake.geometry.candidates import candidate_grasps, rank_grasp_cands
+from mog_drake.geometry.candidates import ranked_candidates
 from mog_drake.geometry.conditions import evaluate_grasps
 from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.tables import format_table
@@ -68,9 +68,8 @@ def candidates_report(
 ) -> tuple[dict, str]:
     """Every candidate for ``group``, ranked by A_T, with its figures and verdict; the text
     table shows the first ``limit`` (colliding ones only with ``all_rows``)."""
-    polys = scene.polygons()
-    ev = evaluate_grasps(polys, group, candidate_grasps(polys, group, positions, orientations), gripper)
-    recs = [{**ev.record(int(i)), "rank": rank} for rank, i in enumerate(rank_grasp_cands(ev))]
+    ev, order = ranked_candidates(scene.polygons(), group, gripper, positions, orientations)
+    recs = [{**ev.record(int(i)), "rank": rank} for rank, i in enumerate(order)]
     counts = {v: sum(r["verdict"] == v for r in recs) for v in ("collision", "diameter", "area", "passed")}
     doc = {
         "group": list(group),
