@@ -153,14 +153,19 @@ def final_diameters(vertices: np.ndarray, tol: float = 1e-7, merge_tol: float = 
     is the distance from e's line to that farthest point. Returns the distinct values,
     sorted ascending. ``tol`` decides contact geometry; values closer than ``merge_tol``
     (default 0.01 mm, the precision of published vertex tables) are one diameter.
+
+    The minimum width is always among them: turning the jaws either way from it widens the
+    polygon, so it is stable even where its foot lies within ``tol`` of a corner (a sliver's
+    acute corner puts it there).
     """
     v = np.asarray(vertices, dtype=float)
     e, n = edge_directions(v)
-    out: list[float] = []
+    widths = np.array([float(((v - v[i]) @ (-n[i])).max()) for i in range(len(v))])
+    out: list[float] = [float(widths.min())]
     for i in range(len(v)):
         a, b = v[i], v[(i + 1) % len(v)]
         depth = (v - a) @ (-n[i])  # distance of every vertex inward from edge i's line
-        d = float(depth.max())
+        d = widths[i]
         far = np.flatnonzero(depth >= d - tol)
         # projections onto edge i of the farthest vertices, and of edge i itself
         s_far = (v[far] - a) @ e[i]

@@ -120,6 +120,9 @@ def test_final_diameters_are_rigid_motion_invariant(name, x, y, th):
 @example([(0.0, 0.0), (0.0, -0.03125), (0.03125, 0.0), (1e-12, 0.03125)])
 @example([(0.0, 0.0), (0.0, 1e-12), (0.03125, 0.0), (0.0078125, 0.03125)])
 @example([(0.0, 0.0), (0.0, 1e-06), (0.03125, 0.03125), (0.03125, -0.015625)])
+# And: a 0.06 mm sliver's minimum width has its foot 6e-8 m from a corner, inside the contact
+# tolerance, so it was taken for a vertex-vertex contact and the sliver had no stable grasp.
+@example([(0.0, 0.03125), (0.0, -0.03125), (6.103515625e-05, 0.03125)])
 def test_d_fmin_is_the_minimum_width(points):
     """For any convex polygon, d_fmin equals the minimum width over all directions."""
     from mog_drake.geometry.polygon import MIN_EDGE, convex_hull_ccw, polygon_area
