@@ -44,13 +44,21 @@ class ControllerConfig:
     open_time: float = 0.35  # the jaws open over the bin
     settle_time: float = 0.2  # at the start, before the first image
     max_unreachable: int = 3  # unreachable grasps in a row that end the run
+    # After the jaws open over the bin the arm goes back to the observe pose (the paper's
+    # cycle). Off (the default): where the arm over the bin hides none of the table, the
+    # table is checked from there and the arm goes straight on to the next grasp or push,
+    # 1.4 s of its 6.7 s cycle saved.
+    return_home: bool = False
 
 
 @dataclass
 class MotionConfig:
     hover: float = 0.12  # m, palm height above the grasp height before descending
     lift: float = 0.15  # m
-    bin_clearance: float = 0.12  # m, fingertips above the bin rim
+    # m, fingertips above the bin rim. At 0.17 the arm over the bin hides none of the table
+    # (every one of 300 sampled carries; at 0.12, 47 %), so the arm can go on from there
+    # (ControllerConfig.return_home); the carry takes no longer.
+    bin_clearance: float = 0.17
     levels: int = 5  # IK points on a vertical line
     # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
     # joint speed and acceleration limits: objects carried by friction stay put.

@@ -61,7 +61,12 @@ class ControllerSystem(LeafSystem):
     planned while the arm drops and returns. At the observe pose the controller asks
     Perception to check that the table has not changed since that image; if it has (an object
     dropped in transit, one moved by the lift, one found where the arm hid it), the decision
-    is dropped and a new image taken there."""
+    is dropped and a new image taken there.
+
+    Unless ``config.return_home``, the arm does not return: where, with the jaws open over
+    the bin, it hides none of the table (`ArmView`), the check is made from there and the next
+    grasp or push starts from the bin. A push still ends at the observe pose, out of the
+    image of the table it leaves."""
 
     MOTIONS = {
         "approach": "close",
@@ -96,6 +101,7 @@ class ControllerSystem(LeafSystem):
         self._open = open_width
         self._close_time, self._open_time, self._settle = close_time, cfg.open_time, cfg.settle_time
         self._max_unreachable = cfg.max_unreachable
+        self._return_home = cfg.return_home
         period = cfg.period
         self._limit = time_limit
         self._arm_view = arm_view
@@ -170,6 +176,8 @@ class ControllerSystem(LeafSystem):
             new.mode, new.t_mode = "lift", t
         elif s.mode == "open" and dt >= self._open_time:
             new.mode, new.t_mode = "home", t
+            if self._from_bin(context, new):
+                self._end_attempt(new, s, t)
         elif s.mode == "push_open" and dt >= self._open_time:
             self._grasp_after_push(new, s, t)
         if s.mode == "to_bin" and new.mode == "open":
@@ -244,13 +252,25 @@ class ControllerSystem(LeafSystem):
             new.plan = None
             new.counter = new.requested = new.requested if new.requested > s.counter else s.counter + 1
         if s.mode == "home":
-            new.attempts[-1] = {**new.attempts[-1], "end": t}
-            new.plan = None
-            if new.requested == s.counter:  # no image on the way: one here
-                new.mode = "wait"
-                new.counter = new.requested = s.counter + 1
-            else:
-                new.mode, new.check = "check", new.requested
+            self._end_attempt(new, s, t)
+
+    def _from_bin(self, context, new: ControllerState) -> bool:
+        """Whether the arm, its jaws open over the bin, goes on from there (not
+        ``return_home``, the next image taken, and the arm hiding none of the table)."""
+        if self._return_home or self._arm_view is None or new.requested == new.counter:
+            return False
+        return bool(self._arm_view(self._q.Eval(context), holding=False))
+
+    def _end_attempt(self, new: ControllerState, s: ControllerState, t: float) -> None:
+        """The attempt ends where the arm is (the observe pose, or over the bin): the table is
+        checked against the image taken on the way, or, with none taken, imaged here."""
+        new.attempts[-1] = {**new.attempts[-1], "end": t}
+        new.plan = None
+        if new.requested == s.counter:  # no image on the way: one here
+            new.mode = "wait"
+            new.counter = new.requested = s.counter + 1
+        else:
+            new.mode, new.check = "check", new.requested
 
     def _skip(self, new: ControllerState, s: ControllerState, d, t: float, kind: str, what, e) -> None:
         """Skips decision ``d``'s grasp or push (``kind``), which the arm cannot reach: logged,
@@ -295,7 +315,7 @@ class ControllerSystem(LeafSystem):
         grasps the group it set up at once, without a new image."""
         dec = d.decision
         try:
-            new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed)
+            new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed, q_home=self._home)
             new.plan["then"] = dec if dec.grasp is not None else None
         except MogError as e:
             self._skip(new, s, d, t, "push", dec.push.to_dict(), e)

@@ -179,11 +179,12 @@ class ArmMotion:
 
     PUSH_POINTS = 9  # IK points along a push's line
 
-    def push_plan(self, push, q_start, speed: float) -> dict:
+    def push_plan(self, push, q_start, speed: float, q_home=None) -> dict:
         """Joint trajectories of one push (`mog_drake.geometry.push.Push`; the jaws closed):
         start -> above the push's start -> down beside the object -> along the line at a mean
         ``speed`` (m/s) on the cubic ease the physics check simulated (`push_duration`) -> up
-        (``push_up``) -> start (``push_home``, unless a grasp follows at once). The closed
+        (``push_up``) -> ``q_home`` (default: start; ``push_home``, unless a grasp follows at
+        once). The closed
         jaws are square in plan: the wrist takes whichever quarter turn of the push's yaw
         turns it least. Raises MogError for a pose the arm cannot reach."""
         cfg = self.config
@@ -211,6 +212,6 @@ class ArmMotion:
             "push_approach": self.timed([q_start, q_above, *down[1:]]),
             "push_line": along,
             "push_up": self.timed(up),
-            "push_home": self.timed([up[-1], q_start]),
+            "push_home": self.timed([up[-1], q_start if q_home is None else np.asarray(q_home, float)]),
             "yaw": yaw,
         }

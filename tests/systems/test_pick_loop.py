@@ -25,11 +25,12 @@ class LiftsAnything:
         return GraspResult(True, lifted=list(group))
 
 
-def _diagram(tmp_path, latency=None, objects=None, mode="sog", **planner):
+def _diagram(tmp_path, latency=None, objects=None, mode="sog", return_home=False, **planner):
     truth = make_scene(objects or [("large_hexagon", 0.05, -0.10, 0.3), ("blue_quad", -0.05, 0.12, 0.9)])
     truth.save(tmp_path / "scene.yaml")
     sc = Scenario(scene=SceneFile(file=str(tmp_path / "scene.yaml")), latency=latency or LatencyConfig())
     sc.planner.mode = mode
+    sc.controller.return_home = return_home
     for k, v in planner.items():
         setattr(sc.planner, k, v)
     d, parts = MakePickDiagram(sc, verifier=LiftsAnything())
@@ -187,9 +188,9 @@ def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path
 
 def test_a_changed_table_forces_a_new_plan(tmp_path):
     """After the image taken over the bin, an object on the table is moved 5 cm (as if
-    knocked by the lift). At the observe pose Perception's check finds the change, the
-    decision of that image is dropped, a new image is taken there and planned from, and the
-    next grasp is of the object where it now lies."""
+    knocked by the lift). Perception's check, made over the bin once the jaws have opened,
+    finds the change, the decision of that image is dropped, a new image is taken there and
+    planned from, and the next grasp is of the object where it now lies."""
     from pydrake.math import RigidTransform
 
     objects = [
@@ -213,7 +214,7 @@ def test_a_changed_table_forces_a_new_plan(tmp_path):
             seen = p_sys.GetOutputPort("scene").Eval(p_sys.GetMyContextFromRoot(ctx))
             scenes.setdefault(seen.counter, seen)
             s = c.state(cctx)
-            if moved is None and s.mode == "home" and s.requested == 2:
+            if moved is None and s.mode == "open" and s.requested == 2:
                 # The first attempt picked one object; move one still on the table.
                 for i, body in handles.bodies.items():
                     X = plant.EvalBodyPoseInWorld(pctx, body)
@@ -234,6 +235,39 @@ def test_a_changed_table_forces_a_new_plan(tmp_path):
     assert near and min(near) < 0.005
     before = [np.hypot(o.x - p[0], o.y - p[1]) for o in scenes[2].scene.objects if o.shape == shape]
     assert min(before) > 0.04
+
+
+@pytest.mark.parametrize("return_home", [False, True])
+def test_the_arm_goes_from_the_bin_to_the_next_grasp_unless_told_to_return_home(tmp_path, return_home):
+    """With the jaws open over the bin, where the arm hides none of the table, the table is
+    checked from there and the next grasp starts there: no trip to the observe pose (its
+    1.4 s saved). With controller.return_home, the paper's cycle: back to the observe pose
+    first. Either way the second grasp is of the second object."""
+    latency = LatencyConfig("fixed", perception_s=0.1, planning_s=0.1)
+    sc, d, parts, sim = _diagram(tmp_path, latency, return_home=return_home)
+    ctx = sim.get_mutable_context()
+    c = parts["controller"]
+    cctx = c.GetMyContextFromRoot(ctx)
+    modes, q_second = [], None
+    try:
+        while ctx.get_time() < 30.0 and len(c.state(cctx).attempts) < 2:
+            sim.AdvanceTo(ctx.get_time() + sc.controller.period)
+            s = c.state(cctx)
+            if not modes or modes[-1] != s.mode:
+                modes.append(s.mode)
+        s = c.state(cctx)
+        q_second = s.plan["approach"].value(0.0).ravel()
+    finally:
+        _close(parts)
+    first = modes[modes.index("open") :]
+    assert len(s.attempts) == 2 and s.attempts[1]["shapes"] != s.attempts[0]["shapes"]
+    if return_home:
+        assert first[:4] == ["open", "home", "check", "wait"]
+        np.testing.assert_allclose(q_second, sc.robot.home, atol=1e-9)
+    else:
+        assert first[:3] == ["open", "check", "wait"] and "home" not in modes
+        assert np.abs(q_second - np.asarray(sc.robot.home)).max() > 0.1  # it starts over the bin
+        assert s.attempts[0]["end"] < s.attempts[1]["start"]
 
 
 def test_arm_view_lets_the_next_image_be_taken_only_when_the_arm_hides_no_object_left():
@@ -264,6 +298,11 @@ def test_arm_view_lets_the_next_image_be_taken_only_when_the_arm_hides_no_object
     assert view.clear_of(high, False, prisms(far))
     assert view.clear_of(high, True, prisms(far))  # what it carries hangs high enough
     assert not view.clear_of(low, True, prisms(far))  # still at the grasp: it would be seen
+    # Its jaws open over the bin, the arm hides none of the table (motion.bin_clearance): the
+    # table can be checked from there (controller.return_home).
+    for x, y, yaw in [(0.10, 0.12, 0.0), (-0.2, 0.2, 1.0), (0.2, -0.2, 2.0), (-0.25, -0.25, 0.5)]:
+        q_bin = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)["home"]
+        assert view(q_bin.value(0.0).ravel())
 
 
 def test_the_change_check_sees_moved_and_uncovered_objects_not_a_millimetre(tmp_path):
