@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
+from mog_drake.scenes import Scene, SceneObject, default_library
+
 # The gate is reproducible: property tests draw the same examples on every run. To search
 # further, run them with HYPOTHESIS_PROFILE=explore (fresh random examples each time).
 settings.register_profile("gate", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "gate"))
-
-from mog_drake.scenes import Scene, SceneObject, default_library
 
 
 @pytest.fixture
