@@ -138,7 +138,7 @@ class ControllerSystem(LeafSystem):
             new.pushes[-1] = {**new.pushes[-1], "next_image": [s.mode, round(dt, 3)]}
         if s.mode in ("lift", "to_bin", "open", "home") and s.requested == s.counter:
             if s.mode in ("open", "home") or self._image_now(context, s):
-                new.requested = s.counter + 1  # the next image, while the arm carries and returns
+                new.requested = s.counter + 1  # the next image, while the arm carries
                 if new.attempts:  # when, in the attempt: the moment the next plan could start
                     new.attempts[-1] = {**new.attempts[-1], "next_image": [s.mode, round(dt, 3)]}
         if t >= self._limit and s.mode in ("observe", "wait", "settle", "check"):

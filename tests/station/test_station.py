@@ -145,6 +145,30 @@ def test_approaches_the_clamped_spline_cannot_time_are_timed(grasp):
     assert np.abs(v).max() <= sc.robot.max_joint_speed * 1.02
 
 
+def test_from_the_bin_the_arm_goes_to_the_next_grasp_above_everything_and_within_the_safety_limits():
+    """The approach from the drop pose over the bin (controller.return_home off): every
+    command passes the hardware station's SafetyMonitor, and until the palm is above the
+    grasp the fingertips stay above the hover height, less 2 cm: far above any prism."""
+    from mog_drake.hardware.safety import SafetyLimits, SafetyMonitor
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration, sc.motion)
+    monitor = SafetyMonitor(SafetyLimits(), sc.robot.base)
+    rng = np.random.default_rng(7)
+    z_hover = m.finger_clearance + sc.motion.hover
+    for _ in range(12):
+        first, then = rng.uniform([-0.2, -0.2, 0.0], [0.2, 0.2, np.pi], (2, 3))
+        q_bin = m.pick_plan(first, sc.robot.home, sc.bin.center, sc.bin.depth)["home"].value(0.0).ravel()
+        approach = m.pick_plan(then, q_bin, sc.bin.center, sc.bin.depth)["approach"]
+        for t in np.linspace(0.0, approach.end_time(), 60):
+            q = approach.value(t).ravel()
+            assert monitor.check(q) == ""
+            f = monitor.frames(q)
+            if np.linalg.norm(f["palm"][:2] - then[:2]) > 0.01:
+                assert min(f["left fingertip"][2], f["right fingertip"][2]) > z_hover - 0.02
+
+
 def test_ik_reaches_the_workspace_corners():
     from mog_drake.systems.motion import ArmMotion
 
