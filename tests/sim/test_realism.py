@@ -158,3 +158,30 @@ def test_the_last_resort_takes_a_nominal_grasp_when_no_robust_one_is_left():
     assert d.status == "grasp" and d.last_resort and d.group == (0,)
     plain = next_pick(scene, planner, PlannerSpec(loop=LoopConfig(last_resort=False)))
     assert plain.status == "no_grasp"
+
+
+def test_the_robust_check_runs_the_nominal_check_only_after_the_perturbed_ones_pass():
+    """The hardest world rejects most of what the nominal check passes, so it runs first: a
+    grasp it drops costs one check; one it lifts is checked at the perceived poses too, and
+    fails if that check does (the verdict is both, as ever)."""
+    from mog_drake.planning.protocol import GraspResult
+
+    class Fake:
+        def __init__(self, lifts):
+            self.lifts, self.calls = lifts, 0
+
+        def check(self, scene, group, grasp):
+            self.calls += 1
+            return GraspResult(self.lifts, list(group) if self.lifts else [])
+
+    scene = make_scene([("thick_bar", 0.0, 0.0, 0.3)], group=[0])
+    for nominal_lifts, perturbed_lifts, calls, ok in [
+        (True, False, (0, 1), False),
+        (True, True, (1, 1), True),
+        (False, True, (1, 1), False),
+        (False, False, (0, 1), False),
+    ]:
+        base, variant = Fake(nominal_lifts), Fake(perturbed_lifts)
+        r = RobustVerifier(base, [variant], RobustConfig(samples=1)).check(scene, [0], np.zeros(3))
+        assert (base.calls, variant.calls) == calls and r.success is ok
+        assert r.lifted == ([0] if ok else [])
