@@ -283,6 +283,9 @@ def run_pick(
 
 
 SLEEP_PERIOD = 0.01  # s of simulated time between two looks at which objects may sleep
+# s of simulated time after an attempt ends (its jaws open over the bin) before it is scored:
+# what it dropped has landed by then. (The arm may go on from the bin at once.)
+LANDING_S = 1.0
 
 
 def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
@@ -333,7 +336,10 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
                 for i, b in handles.bodies.items()
                 if i not in old and handles.plant.EvalBodyPoseInWorld(plant_ctx, b).translation()[2] > 0.08
             ]
+        finished = s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0
         while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
+            if scored and ctx.get_time() < s.attempts[done_attempts]["end"] + LANDING_S:
+                break  # what it dropped is still falling
             a = dict(s.attempts[done_attempts])
             if scored:
                 now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
@@ -358,7 +364,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
             done_pushes += 1
             if on_attempt:
                 on_attempt(done_pushes, run.pushes[-1])
-        if s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0:
+        if finished and done_attempts == sum("end" in a for a in s.attempts):
             run.finished = s.finished or "time limit"
             run.skipped = list(s.skipped)
             break

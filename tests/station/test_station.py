@@ -374,6 +374,19 @@ def test_end_to_end_pick_clears_a_small_table():
     assert run.left == {} and s["left_in_view"] == s["left_out_of_view"] == s["left_off_table"] == 0
 
 
+def test_an_attempt_is_scored_once_what_it_dropped_has_landed():
+    """The arm goes on from over the bin as soon as its jaws are open, while what it let go of
+    still falls: an attempt is scored LANDING_S later. Here the attempt ends 0.05 s after the
+    jaws start to open; everything carried is still counted in the bin."""
+    from mog_drake.systems.pick import run_pick
+
+    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3), time_limit=60.0)
+    sc.controller.open_time = 0.05
+    run = run_pick(sc)
+    assert run.summary()["success_rate"] == 1.0 and run.in_bin == 3
+    assert all(len(a["carried"]) == a["picked"] >= 1 for a in run.attempts)
+
+
 def test_objects_outside_the_bin_are_located():
     from mog_drake.station.scoring import where_left
 
