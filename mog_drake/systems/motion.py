@@ -19,7 +19,22 @@ from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomia
 from mog_drake.config import MotionConfig
 from mog_drake.errors import MogError
 from mog_drake.geometry.push import ease, push_duration
-from mog_drake.sim.ur5 import URDF_PATH, base_transform, palm_in_flange
+from mog_drake.sim.ur5 import URDF_PATH, ArmFrames, base_transform, palm_in_flange
+
+# The arm's links (elbow to flange) stay this high over the table top on every planned move
+# (m; at least 0.15 m in every pick on the table): a plan that would take one lower is refused.
+LINK_FLOOR = 0.10
+LINKS = ("elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
+
+
+def wrist_in_band(q, center: float = 0.0) -> np.ndarray:
+    """``q`` with its last joint (the wrist's turn, which reaches the same pose every full
+    turn) in (center - pi, center + pi]: targets chosen this way keep the wrist from winding up
+    from one grasp to the next when the arm goes from the bin straight on, and from reaching
+    its limit."""
+    q = np.array(q, float)
+    q[5] = q[5] - 2 * np.pi * np.ceil((q[5] - center - np.pi) / (2 * np.pi))
+    return q
 
 
 class ArmMotion:
@@ -33,9 +48,13 @@ class ArmMotion:
         config: MotionConfig | None = None,
         finger_height: float = 0.040,
         finger_clearance: float = 0.002,
+        wrist_center: float = 0.0,
     ):
         """``finger_height``: the fingertips below the palm (m); ``finger_clearance``: the
-        fingertips above the table at the grasp (m), both the gripper's (GripperPhysics)."""
+        fingertips above the table at the grasp (m), both the gripper's (GripperPhysics);
+        ``wrist_center``: the middle of the wrist's band (`wrist_in_band`; the observe pose's
+        wrist, so that a move from there turns it as little as it can)."""
+        self.wrist_center = wrist_center
         self.config = config or MotionConfig()
         self.finger_height, self.finger_clearance = finger_height, finger_clearance
         plant = MultibodyPlant(0.0)
@@ -49,6 +68,7 @@ class ArmMotion:
             )
         )
         plant.Finalize()
+        self.frames = ArmFrames(base_xyyaw)
         self.plant = plant
         self.context = plant.CreateDefaultContext()
         self.vmax = max_speed
@@ -125,25 +145,35 @@ class ArmMotion:
 
     def bin_ik(self, position, yaw: float, seeds) -> np.ndarray:
         """The drop pose above the bin. Its yaw is free (the objects fall either way): the
-        carry's yaw first, then turned by a quarter and a half turn, each from every seed in
-        turn, so that one seed in a poor basin of the solver does not end the attempt."""
+        carry's yaw, turned by a quarter and by a half turn, each from every seed in turn until
+        one reaches it (so that one seed in a poor basin of the solver does not end the
+        attempt); of those reached, the one that turns the joints least from the first seed,
+        its wrist in band (`wrist_in_band`)."""
+        best = None
         for dyaw in (0.0, np.pi / 2, np.pi):
             for q_seed in seeds:
                 try:
-                    return self.ik(position, yaw + dyaw, q_seed)
+                    q = wrist_in_band(self.ik(position, yaw + dyaw, q_seed), self.wrist_center)
                 except MogError:
                     continue
+                turn = np.abs(q - seeds[0]).sum()
+                if best is None or turn < best[0]:
+                    best = (turn, q)
+                break  # this yaw's first seed that reaches it
+        if best is not None:
+            return best[1]  # the yaw that turns the wrist least, in band
         raise MogError(
             f"no arm configuration reaches the drop pose above the bin {np.round(position, 3).tolist()}"
         )
 
     def _above(self, xy, z: float, yaws, q_start):
         """(yaw, joints) of the pose at ``xy``, height ``z``, among ``yaws``, that turns the
-        joints least from ``q_start``; None when the arm reaches none of them."""
+        joints least from ``q_start``, its wrist in band (`wrist_in_band`); None when the arm
+        reaches none of them."""
         best = None
         for yaw in yaws:
             try:
-                q = self.ik([xy[0], xy[1], z], yaw, q_start)
+                q = wrist_in_band(self.ik([xy[0], xy[1], z], yaw, q_start), self.wrist_center)
             except MogError:
                 continue
             if best is None or np.abs(q - q_start).sum() < np.abs(best[1] - q_start).sum():
@@ -169,13 +199,31 @@ class ArmMotion:
         up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])
         z_bin = bin_height + cfg.bin_clearance + self.finger_height
         q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, (up[-1], q_start))
-        return {
-            "approach": self.timed([q_start, q_above, *down[1:]]),
-            "lift": self.timed(up, cfg.carry_scale),
-            "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
-            "home": self.timed([q_bin, q_start if q_home is None else np.asarray(q_home, float)]),
-            "yaw": yaw,
-        }
+        return self._above_table(
+            {
+                "approach": self.timed([q_start, q_above, *down[1:]]),
+                "lift": self.timed(up, cfg.carry_scale),
+                "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
+                "home": self.timed([q_bin, q_start if q_home is None else np.asarray(q_home, float)]),
+                "yaw": yaw,
+            }
+        )
+
+    def _above_table(self, plan: dict) -> dict:
+        """``plan``, once every move of it is found to keep the arm's links LINK_FLOOR over the
+        table (sampled every 20 ms); MogError if one would not."""
+        for leg, traj in plan.items():
+            if not hasattr(traj, "end_time"):
+                continue
+            for t in np.arange(0.0, traj.end_time() + 0.02, 0.02):
+                f = self.frames(traj.value(min(t, traj.end_time())).ravel())
+                low = min(LINKS, key=lambda k: f[k][2])
+                if f[low][2] < LINK_FLOOR:
+                    raise MogError(
+                        f"the planned {leg} would take the arm's {low} to {f[low][2]:.3f} m over the "
+                        f"table (at least {LINK_FLOOR} m)"
+                    )
+        return plan
 
     PUSH_POINTS = 9  # IK points along a push's line
 
@@ -208,10 +256,12 @@ class ArmMotion:
             times, np.array(line).T, np.zeros(6), np.zeros(6)
         )
         up = self.vertical(b, z, z_above, yaw, line[-1])
-        return {
-            "push_approach": self.timed([q_start, q_above, *down[1:]]),
-            "push_line": along,
-            "push_up": self.timed(up),
-            "push_home": self.timed([up[-1], q_start if q_home is None else np.asarray(q_home, float)]),
-            "yaw": yaw,
-        }
+        return self._above_table(
+            {
+                "push_approach": self.timed([q_start, q_above, *down[1:]]),
+                "push_line": along,
+                "push_up": self.timed(up),
+                "push_home": self.timed([up[-1], q_start if q_home is None else np.asarray(q_home, float)]),
+                "yaw": yaw,
+            }
+        )

@@ -169,6 +169,41 @@ def test_from_the_bin_the_arm_goes_to_the_next_grasp_above_everything_and_within
                 assert min(f["left fingertip"][2], f["right fingertip"][2]) > z_hover - 0.02
 
 
+def test_grasp_after_grasp_from_the_bin_the_wrist_does_not_wind_up():
+    """v20's table 11 (sog), grasp after grasp, each approach from the last drop pose: chosen
+    by the least turn alone, the wrist wound up by half turns until the drop pose's solver
+    hit the joint's limit and flipped the arm, whose carry went 0.34 m below the table top.
+    Every target's wrist now stays within half a turn of the observe pose's, and no planned
+    move takes a link below LINK_FLOOR; a plan that would is refused."""
+    from mog_drake.errors import MogError
+    from mog_drake.systems.motion import LINK_FLOOR, ArmMotion
+
+    sc = Scenario()
+    home = np.array(sc.robot.home)
+    m = ArmMotion(
+        sc.robot.base,
+        sc.robot.max_joint_speed,
+        sc.robot.max_joint_acceleration,
+        sc.motion,
+        wrist_center=home[5],
+    )
+    grasps = [
+        [-0.06, -0.006, 2.029], [-0.099, 0.038, 1.338], [-0.025, -0.021, 2.693], [-0.017, -0.053, 2.244],
+        [0.131, -0.002, 2.176], [0.088, 0.022, 0.0], [0.081, 0.002, 0.0], [0.016, 0.094, 0.795],
+        [-0.033, 0.047, 1.751], [0.112, -0.089, 0.337], [-0.094, -0.063, 1.795], [-0.009, -0.104, 1.231],
+        [0.037, -0.026, 0.0],
+    ]  # fmt: skip
+    q = home
+    for g in grasps * 2:
+        plan = m.pick_plan(np.array(g), q, sc.bin.center, sc.bin.depth)
+        q = plan["home"].value(0.0).ravel()  # the drop pose: the next approach starts there
+        assert abs(q[5] - home[5]) <= np.pi + 1e-9
+        assert plan["to_bin"].end_time() < 2.5  # no half-turn spin of the wrist on the way
+    flipped = np.array([-1.91, 3.21, -4.58, 2.94, 1.57, 1.57])  # the flipped drop pose
+    with pytest.raises(MogError, match=f"at least {LINK_FLOOR}"):
+        m.pick_plan(np.array(grasps[0]), flipped, sc.bin.center, sc.bin.depth)
+
+
 def test_ik_reaches_the_workspace_corners():
     from mog_drake.systems.motion import ArmMotion
 
@@ -336,7 +371,7 @@ def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
     monkeypatch.setattr(m, "ik", flaky)
     p = [sc.bin.center[0], sc.bin.center[1], 0.3]
     q = m.bin_ik(p, 0.4, (np.array(sc.robot.home), np.array(sc.robot.home)))
-    assert len(calls) == 3 and calls[2] == pytest.approx(0.4 + np.pi / 2)
+    assert len(calls) == 4 and calls[2] == pytest.approx(0.4 + np.pi / 2)  # then the half turn
     np.testing.assert_allclose(m.palm_pose(q).translation(), p, atol=5e-4)
     monkeypatch.setattr(m, "ik", lambda *a, **kw: (_ for _ in ()).throw(MogError("no")))
     with pytest.raises(MogError, match="drop pose above the bin"):
