@@ -48,13 +48,17 @@ class ArmMotion:
         config: MotionConfig | None = None,
         finger_height: float = 0.040,
         finger_clearance: float = 0.002,
-        wrist_center: float = 0.0,
+        q_home=None,
     ):
         """``finger_height``: the fingertips below the palm (m); ``finger_clearance``: the
         fingertips above the table at the grasp (m), both the gripper's (GripperPhysics);
-        ``wrist_center``: the middle of the wrist's band (`wrist_in_band`; the observe pose's
-        wrist, so that a move from there turns it as little as it can)."""
-        self.wrist_center = wrist_center
+        ``q_home``: the observe pose. Where given, every target's IK starts from it, so that
+        each lies on its branch whatever the arm did before (chained from drop to grasp to
+        push, a pose reached from a push by the robot's base could leave the next approach
+        on another branch, its elbow 9 cm over the table), and the wrist's band
+        (`wrist_in_band`) is centred on its wrist."""
+        self.q_home = None if q_home is None else np.asarray(q_home, float)
+        self.wrist_center = 0.0 if q_home is None else float(self.q_home[5])
         self.config = config or MotionConfig()
         self.finger_height, self.finger_clearance = finger_height, finger_clearance
         plant = MultibodyPlant(0.0)
@@ -143,12 +147,17 @@ class ArmMotion:
                 return PathParameterizedTrajectory(path, s_traj)
         raise MogError("TOPP-RA found no time parameterisation for the arm path")
 
-    def bin_ik(self, position, yaw: float, seeds) -> np.ndarray:
+    def _seed(self, q) -> np.ndarray:
+        """Where a target's IK starts: the observe pose where known, else ``q``."""
+        return np.asarray(q, float) if self.q_home is None else self.q_home
+
+    def bin_ik(self, position, yaw: float, seeds, turn_from=None) -> np.ndarray:
         """The drop pose above the bin. Its yaw is free (the objects fall either way): the
         carry's yaw, turned by a quarter and by a half turn, each from every seed in turn until
         one reaches it (so that one seed in a poor basin of the solver does not end the
-        attempt); of those reached, the one that turns the joints least from the first seed,
-        its wrist in band (`wrist_in_band`)."""
+        attempt); of those reached, the one that turns the joints least from ``turn_from``
+        (default: the first seed), its wrist in band (`wrist_in_band`)."""
+        turn_from = np.asarray(seeds[0] if turn_from is None else turn_from, float)
         best = None
         for dyaw in (0.0, np.pi / 2, np.pi):
             for q_seed in seeds:
@@ -156,7 +165,7 @@ class ArmMotion:
                     q = wrist_in_band(self.ik(position, yaw + dyaw, q_seed), self.wrist_center)
                 except MogError:
                     continue
-                turn = np.abs(q - seeds[0]).sum()
+                turn = np.abs(q - turn_from).sum()
                 if best is None or turn < best[0]:
                     best = (turn, q)
                 break  # this yaw's first seed that reaches it
@@ -173,7 +182,7 @@ class ArmMotion:
         best = None
         for yaw in yaws:
             try:
-                q = wrist_in_band(self.ik([xy[0], xy[1], z], yaw, q_start), self.wrist_center)
+                q = wrist_in_band(self.ik([xy[0], xy[1], z], yaw, self._seed(q_start)), self.wrist_center)
             except MogError:
                 continue
             if best is None or np.abs(q - q_start).sum() < np.abs(best[1] - q_start).sum():
@@ -198,7 +207,8 @@ class ArmMotion:
         down = self.vertical(grasp[:2], z_above, z_grasp, yaw, q_above)
         up = self.vertical(grasp[:2], z_grasp, z_grasp + cfg.lift, yaw, down[-1])
         z_bin = bin_height + cfg.bin_clearance + self.finger_height
-        q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, (up[-1], q_start))
+        seeds = (up[-1], q_start if self.q_home is None else self.q_home)
+        q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, seeds, turn_from=up[-1])
         return self._above_table(
             {
                 "approach": self.timed([q_start, q_above, *down[1:]]),

@@ -105,7 +105,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
         scenario.motion,
         finger_height=g.finger_height,
         finger_clearance=g.finger_clearance,
-        wrist_center=scenario.robot.home[5],
+        q_home=scenario.robot.home,
     )
     controller = builder.AddNamedSystem(
         "controller",

@@ -185,7 +185,7 @@ def test_grasp_after_grasp_from_the_bin_the_wrist_does_not_wind_up():
         sc.robot.max_joint_speed,
         sc.robot.max_joint_acceleration,
         sc.motion,
-        wrist_center=home[5],
+        q_home=home,
     )
     grasps = [
         [-0.06, -0.006, 2.029], [-0.099, 0.038, 1.338], [-0.025, -0.021, 2.693], [-0.017, -0.053, 2.244],
@@ -202,6 +202,13 @@ def test_grasp_after_grasp_from_the_bin_the_wrist_does_not_wind_up():
     flipped = np.array([-1.91, 3.21, -4.58, 2.94, 1.57, 1.57])  # the flipped drop pose
     with pytest.raises(MogError, match=f"at least {LINK_FLOOR}"):
         m.pick_plan(np.array(grasps[0]), flipped, sc.bin.center, sc.bin.depth)
+    # Whatever the arm did before, a target lies on the observe pose's branch: its IK starts
+    # there (the start decides only the wrist's half turn).
+    for g in grasps[:4]:
+        from_home = m._above(g[:2], 0.16, (g[2], g[2] + np.pi), home)[1]
+        np.testing.assert_allclose(
+            m._above(g[:2], 0.16, (g[2], g[2] + np.pi), flipped)[1][:5], from_home[:5], atol=0.01
+        )
 
 
 def test_ik_reaches_the_workspace_corners():
