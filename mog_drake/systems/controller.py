@@ -207,7 +207,7 @@ class ControllerSystem(LeafSystem):
         the arm cannot reach it (observe again: the planner does not repeat its last grasps)."""
         dec = d.decision
         try:
-            new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin)
+            new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin, q_home=self._home)
         except MogError as e:
             self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e)
             return
