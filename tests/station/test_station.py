@@ -479,6 +479,15 @@ def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
     # the object on the table stays where it is
     p2 = h.plant.EvalBodyPoseInWorld(pc, h.bodies[2]).translation()
     assert abs(p2[0]) < 0.3 and abs(p2[1]) < 0.3
+    # The last object stays in the bin, at rest: some contact is always left to simulate (a
+    # cleared table with every object retired faulted the solver at a table's end).
+    h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([cx, cy, 0.0]))
+    h.plant.SetFreeBodySpatialVelocity(pc, h.bodies[1], SpatialVelocity.Zero())
+    h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([cx, cy + 0.05, 0.0]))
+    retire.update(pc)  # 1 comes to rest in the bin and is retired; 2 is the last one
+    assert retire.retired == [0, 1]
+    assert np.linalg.norm(h.plant.EvalBodyPoseInWorld(pc, h.bodies[2]).translation() - [cx, cy, 0.0]) < 1e-9
+    assert sorted(objects_in_bin(h.plant, pc, h.bodies, sc, retire.retired)) == [0, 1, 2]
 
 
 def test_committed_scenario_file_matches_the_defaults():
