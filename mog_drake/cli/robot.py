@@ -55,7 +55,8 @@ def _scenario(args):
 
 def cmd_pick(args) -> None:
     """Builds the pick-and-place Diagram and runs it until the table is clear."""
-    from mog_drake.systems.pick import attempt_line, run_heading, run_pick, run_text
+    from mog_drake.systems.pick import run_pick
+    from mog_drake.systems.pick_run import attempt_line, run_heading, run_text
 
     sc = _scenario(args)
     meshcat = meshcat_of(args)

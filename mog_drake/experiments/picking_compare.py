@@ -16,7 +16,7 @@ def transit_drops(runs: list[dict]) -> dict:
     attempts that dropped some, "dropped": objects, "attempts": all attempts, and of the
     failed attempts (none in the bin) "missed": those that lifted nothing, "lost": those that
     dropped all they lifted}."""
-    from mog_drake.systems.pick import dropped_in_transit
+    from mog_drake.systems.pick_run import dropped_in_transit
 
     out = {"drop_attempts": 0, "dropped": 0, "attempts": 0, "missed": 0, "lost": 0}
     for r in runs:

@@ -283,7 +283,7 @@ def test_an_object_lost_after_the_lift_is_warned_and_counted_as_a_drop():
     """The fake closes onto an object (OBJ 2), then the object slips out: the fingers finish
     the close (OBJ 3) with no new command. The driver warns, notes when, and the attempt
     under way counts it as dropped; opening over the bin afterwards is no loss."""
-    from mog_drake.systems.pick import PickRun, attempt_line
+    from mog_drake.systems.pick_run import PickRun, attempt_line
 
     faults = FaultLatch()
     with (

@@ -567,12 +567,13 @@ def test_tiny_picking_evaluation(tmp_path):
 def test_a_picking_sweep_grows_by_a_mode_without_rerunning_the_other(tmp_path, monkeypatch):
     from mog_drake.experiments import picking_eval
     from mog_drake.systems import pick
+    from mog_drake.systems.pick_run import PickRun
 
     seen = []
 
     def fake_run(sc):
         seen.append(sc.planner.mode)
-        return pick.PickRun(objects=5, shapes=["cube"] * 5)
+        return PickRun(objects=5, shapes=["cube"] * 5)
 
     monkeypatch.setattr(pick, "run_pick", fake_run)
     picking_eval.run(2, ["mog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
@@ -613,10 +614,11 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     )
 
     from mog_drake.systems import pick
+    from mog_drake.systems.pick_run import PickRun
 
     seen = []
     monkeypatch.setattr(
-        pick, "run_pick", lambda sc: seen.append(sc) or pick.PickRun(objects=5, shapes=["cube"] * 5)
+        pick, "run_pick", lambda sc: seen.append(sc) or PickRun(objects=5, shapes=["cube"] * 5)
     )
     record = picking_eval.picking_worker(task)
     assert seen[0].planner.loop.group_radius == 0.045 and record["summary"]["objects"] == 5
