@@ -177,7 +177,51 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
                 **{f"lone_{k.replace(' ', '_')}": n for k, n in lone_reasons([r]).items()},
             }
         )
-    return {**paired, "per_table": tables}
+    return {**paired, "per_table": tables, "robot_time": robot_time_split(a, b)}
+
+
+def robot_time_split(a: list[dict], b: list[dict]) -> dict:
+    """Where mode B's robot time goes against mode A's, on the tables both ran: the ratio of
+    their robot times (A / B, the PPH ratio had neither arm waited: both clear the table),
+    the same with B's pushes taking no time, the robot time per grasp of each (B's without
+    its pushes), and per push with how far its object moved (mm)."""
+    by_a = {r["key"]: r for r in a}
+    pairs = [(by_a[r["key"]], r) for r in b if r["key"] in by_a]
+    pairs = [
+        (ra, rb)
+        for ra, rb in pairs
+        if ra["summary"]["robot_time_s"] > 0 and rb["summary"]["robot_time_s"] > 0
+    ]
+    if not pairs:
+        return {}
+    sa = [ra["summary"] for ra, _ in pairs]
+    sb = [rb["summary"] for _, rb in pairs]
+    pushes = [p for _, rb in pairs for p in rb.get("pushes", ())]
+    push_s = sum(s.get("push_time_s", 0.0) for s in sb)
+    return {
+        "tables": len(pairs),
+        "ratio": mean_ci([x["robot_time_s"] / y["robot_time_s"] for x, y in zip(sa, sb)])[0],
+        "ratio_pushes_free": mean_ci(
+            [x["robot_time_s"] / (y["robot_time_s"] - y.get("push_time_s", 0.0)) for x, y in zip(sa, sb)]
+        )[0],
+        "grasp_s_a": sum(x["robot_time_s"] for x in sa) / max(sum(x["attempts"] for x in sa), 1),
+        "grasp_s_b": (sum(y["robot_time_s"] for y in sb) - push_s) / max(sum(y["attempts"] for y in sb), 1),
+        "pushes": len(pushes),
+        "push_s": push_s / len(pushes) if pushes else float("nan"),
+        "push_mm": 1e3 * sum(p["push"]["distance"] for p in pushes) / len(pushes) if pushes else float("nan"),
+    }
+
+
+def robot_time_text(doc: dict, a_mode: str, b_mode: str) -> str:
+    """`robot_time_split` as a line; empty where no table ran both."""
+    if not doc:
+        return ""
+    return (
+        f"{b_mode} against {a_mode}, robot time alone (had neither arm waited), {doc['tables']} tables: "
+        f"{doc['ratio']:.2f}x; with {b_mode}'s pushes taking no time {doc['ratio_pushes_free']:.2f}x. "
+        f"A grasp took {doc['grasp_s_a']:.2f} s ({a_mode}) and {doc['grasp_s_b']:.2f} s ({b_mode}); "
+        f"a push {doc['push_s']:.2f} s ({doc['pushes']} pushes, the object moved {doc['push_mm']:.0f} mm on average)"
+    )
 
 
 def lone_reasons(runs: list[dict]) -> dict:

@@ -15,6 +15,7 @@ from mog_drake.experiments.picking_compare import (
     compare_modes,
     compare_text,
     lone_reasons,
+    robot_time_text,
     transit_drops,
 )
 from mog_drake.experiments.stats import mean_ci
@@ -336,6 +337,8 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
             + "\n"
             + compare_text(modes)
         )
+        if split := robot_time_text(modes["robot_time"], "sog", "push-mog"):
+            text += "\n" + split
     text += "\n" + losses_text(summary)
     if waits := wait_text(results, [r["mode"] for r in summary["rows"]]):
         text += "\n" + waits

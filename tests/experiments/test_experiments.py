@@ -366,6 +366,35 @@ def test_push_mog_is_paired_with_sog_table_by_table_within_one_sweep():
     assert pph["a"] == pytest.approx(450.0) and pph["b"] == pytest.approx(750.0)
 
 
+def test_push_mog_robot_time_is_split_into_grasps_and_pushes_against_sog():
+    def run(scene, mode, robot, attempts, push_time=0.0, pushes=0):
+        r = _picking_record(scene, mode, 1.0, 500.0, timing={"robot_time_s": robot, "push_time_s": push_time})
+        r["summary"]["attempts"] = attempts
+        r["pushes"] = [{"push": {"distance": 0.03}} for _ in range(pushes)]
+        return r
+
+    results = [
+        run(0, "sog", 100.0, 20),
+        run(0, "push-mog", 80.0, 12, push_time=20.0, pushes=4),
+        run(1, "sog", 90.0, 18),
+        run(1, "push-mog", 60.0, 12),
+        run(2, "sog", 90.0, 18),  # push-mog has not run table 2 yet
+    ]
+    split = picking_compare.compare_modes(results, "sog", "push-mog")["robot_time"]
+    assert split["tables"] == 2
+    assert split["ratio"] == pytest.approx((100 / 80 + 90 / 60) / 2)
+    assert split["ratio_pushes_free"] == pytest.approx((100 / 60 + 90 / 60) / 2)
+    assert split["grasp_s_a"] == pytest.approx(190 / 38) and split["grasp_s_b"] == pytest.approx(120 / 24)
+    assert (
+        split["pushes"] == 4
+        and split["push_s"] == pytest.approx(5.0)
+        and split["push_mm"] == pytest.approx(30.0)
+    )
+    text = picking_compare.robot_time_text(split, "sog", "push-mog")
+    assert "1.38x" in text and "1.58x" in text and "a push 5.00 s (4 pushes" in text
+    assert picking_compare.robot_time_split([], []) == {}
+
+
 def test_grouping_ceiling_counts_the_grasps_alg1_needs_if_every_group_lifts_whole():
     from conftest import make_scene
 
