@@ -18,6 +18,7 @@ from pydrake.geometry import (
     Convex,
     HalfSpace,
     ProximityProperties,
+    Sphere,
 )
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import CoulombFriction, MultibodyPlant, MultibodyPlantConfig
@@ -189,6 +190,31 @@ def prism_points(shape) -> np.ndarray:
     pts[:2, n:] = v.T
     pts[2, n:] = shape.height
     return pts
+
+
+def add_ballast(plant: MultibodyPlant, contact: ContactConfig, X_WB: RigidTransform):
+    """Numerics, not physics: a 100 g sphere resting on a plate of its own at ``X_WB``, with
+    no visual, out of every view and reach. Drake 1.51's discrete (SAP) solver fails to
+    converge on a station in which nothing is in contact while the arm settles to rest under
+    its PD control: a cleared table with its objects retired, the arm still over the bin
+    (`test_a_cleared_station_with_the_arm_settling_does_not_fault`). With one loaded contact
+    anywhere in the plant the same steps converge; the ballast's weight on its plate is one
+    in every step. A point contact (the sphere has no hydroelastic properties): the cheapest
+    there is."""
+    plant.RegisterCollisionGeometry(
+        plant.world_body(),
+        X_WB @ RigidTransform([0.0, 0.0, -0.01]),
+        Box(0.1, 0.1, 0.02),
+        "ballast_plate",
+        _proximity(contact, 1.0, False),
+    )
+    instance = plant.AddModelInstance("ballast")
+    body = plant.AddRigidBody("ballast", instance, SpatialInertia.SolidSphereWithMass(0.1, 0.02))
+    props = ProximityProperties()
+    AddContactMaterial(contact.hunt_crossley_dissipation, None, CoulombFriction(1.0, 1.0), props)
+    plant.RegisterCollisionGeometry(body, RigidTransform(), Sphere(0.02), "ballast", props)
+    plant.SetDefaultFloatingBaseBodyPose(body, X_WB @ RigidTransform([0.0, 0.0, 0.02]))
+    return body
 
 
 def add_prism(

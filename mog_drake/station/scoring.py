@@ -36,11 +36,7 @@ class BinRetirement:
     only drops objects into it. Retired objects are parked far above the station, each in its
     own spot, put back there with zero velocity at every check (they fall freely in between),
     and counted in the bin for good. The pile is gone, so a later drop lands on the bin floor;
-    a Meshcat replay shows retired objects leave the bin.
-
-    The last object is never retired: it stays in the bin, so that some contact is always
-    simulated (with none, and every body at rest, Drake 1.51's discrete solver fails to
-    converge: `Sleep` keeps one object awake on the table for the same reason)."""
+    a Meshcat replay shows retired objects leave the bin."""
 
     PARK = np.array([20.0, 20.0, 50.0])  # m, far from everything, above the table's half-space
 
@@ -52,7 +48,7 @@ class BinRetirement:
     def update(self, plant_context) -> None:
         plant = self.plant
         for i in objects_in_bin(plant, plant_context, self.bodies, self.scenario, self.retired):
-            if i in self.retired or len(self.retired) >= len(self.bodies) - 1:
+            if i in self.retired:
                 continue
             v = plant.EvalBodySpatialVelocityInWorld(plant_context, self.bodies[i])
             if np.linalg.norm(v.translational()) < self.rest_speed:

@@ -29,6 +29,7 @@ from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile
 from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
 from mog_drake.sim.models import (
+    add_ballast,
     add_bin,
     add_gripper_fingers,
     add_prism,
@@ -286,6 +287,8 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         i: add_prism(plant, scene.shape(i), f"object_{i}", contact, world.friction[i], world.mass[i])
         for i in range(len(scene))
     }
+    # Under the table, out of view: one loaded contact in every step (see add_ballast).
+    add_ballast(plant, contact, X_table @ RigidTransform([0.0, 0.0, -0.5]))
     plant.Finalize()
     # The arm's links and gripper never collide with each other (self-collision is not
     # modelled; the motion plans keep clear), nor the base and shoulder with the table they stand on.

@@ -109,15 +109,8 @@ class Sleep:
             if i in self.asleep and (v[k] > 0 or w[k] > 0 or reachable(k, 1.0)):
                 self._unfilter(mgr, i)
         everything = None
-        # One object on the table always stays awake: with no contact at all and every body
-        # coming to rest (the arm idle at its observe pose, the rest asleep or retired; the
-        # velocities decay towards zero), Drake 1.51's discrete solver fails to converge
-        # ("SAP solver failed") within seconds.
-        awake = [
-            i for k, i in enumerate(ids) if i not in self.asleep and i not in skip and abs(p[k][2]) < 0.05
-        ]
         for k, i in enumerate(ids):
-            if i in self.asleep or i in skip or len(awake) <= 1:
+            if i in self.asleep or i in skip:
                 continue
             at_rest = v[k] < self.rest_speed and w[k] < self.rest_turn and abs(p[k][2]) < self.table_height
             if not at_rest:
@@ -131,16 +124,7 @@ class Sleep:
             self.asleep[i] = mgr.ApplyTransient(
                 CollisionFilterDeclaration().ExcludeBetween(self._geometry[i], everything)
             )
-            awake.remove(i)
             plant.SetFreeBodySpatialVelocity(pc, self.bodies[i], SpatialVelocity.Zero())
-        if not awake and self.asleep:
-            # The last awake object left the table (picked): the sleeper nearest the gripper
-            # takes its place, so that some contact is always simulated (see above).
-            k = min(
-                (k for k, i in enumerate(ids) if i in self.asleep),
-                key=lambda k: np.min(np.linalg.norm(grip - p[k], axis=1)),
-            )
-            self._unfilter(mgr, ids[k])
         if set(self.asleep) != before:
             self._carry(pc)
 
