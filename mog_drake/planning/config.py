@@ -181,9 +181,9 @@ class LookaheadConfig:
 
 @dataclass
 class RobustConfig:
-    """Robust grasps (`mog_drake.planning.robust`): ``samples`` checks of a perturbed world, of
-    which ``required`` (0: all) must lift the group, and the nominal check. Off (0 samples) by
-    default, and in the faithful reproduction of the paper."""
+    """Robust grasps (`mog_drake.planning.robust`): after the nominal check passes, ``samples``
+    checks of a perturbed world, of which ``required`` (0: all) must lift the group. Off (0
+    samples) by default, and in the faithful reproduction of the paper."""
 
     samples: int = 0
     required: int = 0

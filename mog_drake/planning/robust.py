@@ -2,11 +2,8 @@
 the nominal check and in at least ``required`` of ``samples`` checks of a perturbed world:
 every object's perceived pose moved (a shift common to all, the camera's calibration, and one
 of each, the fit's), and friction and mass within their ranges, the first sample at the
-ends of the ranges that make holding hardest, the others drawn. The perturbed checks run
-first and the nominal one only after they pass: the hardest world rejects most of what
-the nominal check passes (5 of 8 candidates of the top groups on tables 0-3), so a verdict
-costs one check more often. A Verifier like any other: the failure memory and the lookahead
-take its verdicts as they are. No Drake import.
+ends of the ranges that make holding hardest, the others drawn. A Verifier like any
+other: the failure memory and the lookahead take its verdicts as they are. No Drake import.
 
 Each perturbation is drawn from the grasp, its group and the poses it is checked at, so the
 same check asked again gives the same verdict; the k-th sample's friction and mass are the
@@ -85,26 +82,25 @@ class RobustVerifier:
         return replace(scene, objects=objects)
 
     def check(self, scene, group, grasp) -> GraspResult:
-        if not self.variants:
-            return self.base.check(scene, group, grasp)
-        held, lifted, runs = 0, None, []
+        first = self.base.check(scene, group, grasp)
+        if not first.success or not self.variants:
+            return first
+        held, lifted = 0, set(first.lifted)
+        sim_time, wall_time = first.sim_time, first.wall_time
         for k, variant in enumerate(self.variants):
-            runs.append(variant.check(self.perturbed(scene, group, grasp, k), group, grasp))
-            lifted = set(runs[-1].lifted) if lifted is None else lifted & set(runs[-1].lifted)
-            held += bool(runs[-1].success)
+            r = variant.check(self.perturbed(scene, group, grasp, k), group, grasp)
+            sim_time, wall_time = sim_time + r.sim_time, wall_time + r.wall_time
+            lifted &= set(r.lifted)
+            held += bool(r.success)
             if held >= self.required or held + len(self.variants) - k - 1 < self.required:
                 break  # the verdict is certain
         ok = held >= self.required
-        error = "" if ok else f"not robust: the group lifted in {held} of {len(runs)} perturbed checks"
-        if ok:  # and at the perceived poses
-            runs.insert(0, self.base.check(scene, group, grasp))
-            ok, error = runs[0].success, runs[0].error
-            lifted &= set(runs[0].lifted)
+        error = "" if ok else f"not robust: the group lifted in {held} of {k + 1} perturbed checks"
         return replace(
-            runs[0],
+            first,
             success=ok,
             lifted=sorted(lifted),  # what every check run lifted: a part verified robustly too
-            sim_time=sum(r.sim_time for r in runs),
-            wall_time=sum(r.wall_time for r in runs),
+            sim_time=sim_time,
+            wall_time=wall_time,
             error=error,
         )
