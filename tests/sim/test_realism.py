@@ -180,14 +180,44 @@ def test_a_partial_lift_at_the_perceived_poses_stays_a_partial_lift_under_the_ro
     scene = make_scene(
         [("thick_bar", 0.0, 0.0, 0.3), ("thick_bar", 0.03, 0.0, 0.3), ("thick_bar", 0.06, 0.0, 0.3)]
     )
+    across = np.array([0.03, 0.0, np.pi / 2])  # the open jaws clear of every bar, moved or not
     base, variant = Fake(False, [0, 1]), Fake(False, [0])  # the hardest world lifts one
     robust = RobustVerifier(base, [variant], RobustConfig(samples=1))
-    r = robust.check(scene, [0, 1, 2], np.zeros(3))
+    r = robust.check(scene, [0, 1, 2], across)
     assert not r.success and r.lifted == [0, 1] and r.error == ""
     assert (base.calls, variant.calls) == (1, 0)
     plan = GraspPlanner(robust, GraspConfig(max_physics=1)).plan(scene, [0, 1, 2])
     assert plan.best_lift is not None and plan.best_lift[1] == [0, 1]
     # A grasp the nominal check passes must lift the group in the perturbed world too.
     base, variant = Fake(True, [0, 1, 2]), Fake(False, [0])
-    r = RobustVerifier(base, [variant], RobustConfig(samples=1)).check(scene, [0, 1, 2], np.zeros(3))
+    r = RobustVerifier(base, [variant], RobustConfig(samples=1)).check(scene, [0, 1, 2], across)
     assert not r.success and r.error.startswith("not robust") and (base.calls, variant.calls) == (1, 1)
+
+
+def test_a_grasp_whose_open_jaws_land_on_an_object_once_moved_is_refused_without_physics():
+    """The screen: the sample's moved poses put a bar under a jaw, so the perturbed check
+    would fail at its start. Neither check is run, and the nominal check's lift is not kept
+    (the grasp is refused whole, as it would be after both checks); with ``required`` below
+    the samples, one screened world is a failed sample, not a refusal."""
+    from mog_drake.planning.protocol import GraspResult
+
+    class Fake:
+        def __init__(self):
+            self.calls = 0
+
+        def check(self, scene, group, grasp):
+            self.calls += 1
+            return GraspResult(True, list(group))
+
+    scene = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
+    grasp = np.array([0.0, 0.0, np.pi / 2])  # a jaw 1.5 mm from the second bar: clear as seen
+    robust = RobustVerifier(Fake(), [Fake()], RobustConfig(samples=1, shift_sigma=0.003, seed=1))
+    moved = robust.perturbed(scene, [0], grasp, 0)
+    assert moved.objects[1].y < 0.055 - 0.0015  # this seed moves the bar under the jaw
+    r = robust.check(scene, [0], grasp)
+    assert not r.success and "open jaws start on an object in 1 of 1" in r.error and not r.lifted
+    assert (robust.base.calls, robust.variants[0].calls) == (0, 0)
+    two = RobustVerifier(
+        Fake(), [Fake(), Fake()], RobustConfig(samples=2, required=1, shift_sigma=0.003, seed=1)
+    )
+    assert two.check(scene, [0], grasp).success and two.base.calls == 1
