@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
+import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -230,17 +231,20 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     done_attempts = done_pushes = 0
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
+    good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
-        before = handles.plant.GetPositionsAndVelocities(plant_ctx).copy() if scored else None
+        if scored and np.all(np.isfinite(x := handles.plant.GetPositionsAndVelocities(plant_ctx))):
+            good = (ctx.get_time(), x.copy())
         try:
             if pacer is not None:
                 pacer.advance_to(ctx.get_time() + step)
             else:
                 sim.AdvanceTo(ctx.get_time() + step)
         except RuntimeError as e:
-            if before is None:
+            if good is None:
                 raise
-            raise RuntimeError(f"{e} {station_state(handles, before, sleep, gone, ctx.get_time())}") from None
+            line = station_state(handles, good[1], sleep, gone, ctx.get_time(), good[0])
+            raise RuntimeError(f"{e} {line}") from None
         if retire:
             retire.update(plant_ctx)
         if sleep:

@@ -72,10 +72,11 @@ def test_a_table_cleared_with_resting_objects_asleep_gives_the_same_attempts():
     assert a.in_bin == b.in_bin
 
 
-def test_a_station_fault_reports_its_last_good_state(monkeypatch):
+def test_a_station_fault_reports_its_last_finite_state(monkeypatch):
     """A non-finite state ends the run (Drake's SceneGraph refuses it); the error then says
-    when, which bodies moved fastest just before, and what was asleep or retired. Here an
-    object's velocity is set to NaN a second into a run: the solver fails in the next step."""
+    when, which bodies moved fastest in the last state that was still finite, and where they
+    were, and what was asleep or retired. Here an object is flung at 50 m/s a second into a
+    run, and its velocity set to NaN a step later: the solver fails in the step after."""
     import pytest
 
     from mog_drake.station import scoring
@@ -86,7 +87,9 @@ def test_a_station_fault_reports_its_last_good_state(monkeypatch):
     h.plant.SetFreeBodySpatialVelocity(pc, body, SpatialVelocity(np.zeros(3), [3.0, 0.0, 0.0]))
     x = h.plant.GetPositionsAndVelocities(pc).copy()
     line = station_state(h, x, None, [1], 12.5)
-    assert line.startswith("(station at t = 12.500 s") and "fastest object 2 at 3 m/s" in line
+    p = h.plant.EvalBodyPoseInWorld(pc, body).translation()
+    assert line.startswith("(station at t = 12.500 s") and "fastest object 2 at 3 m/s at (" in line
+    assert f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m" in line
     assert "asleep []; retired [1])" in line
 
     update = scoring.BinRetirement.update
@@ -104,6 +107,7 @@ def test_a_station_fault_reports_its_last_good_state(monkeypatch):
     sc = Scenario(scene=ClutteredScene(seed=0, n_objects=3), time_limit=20.0)
     sc.latency.mode = "fixed"
     with pytest.raises(
-        RuntimeError, match=r"\(station at t = 1\.0\d+ s, its last good state: fastest object 1 at nan m/s"
+        RuntimeError,
+        match=r"\(station at t = 1\.0\d+ s, its last finite state \(t = 1\.0\d+ s\): fastest object 1 at 50 m/s at \(",
     ):
         run_pick(sc)

@@ -70,7 +70,16 @@ def run(
     elif what == "replanning":
         from mog_drake.experiments.bench.station import bench_replanning
 
-        rows = bench_replanning(scenes, seed, Progress(2 * scenes, "replanning", enabled=progress), budget)
+        bar = Progress(2 * scenes, "replanning", enabled=progress)
+        rows = bench_replanning(scenes, seed, bar, budget, scenario)
+        sums = {}
+        for r in rows:
+            s = sums.setdefault(r["setting"], [0.0, 0.0, 0])
+            s[0], s[1], s[2] = s[0] + r["cpu_s"], s[1] + r["first_s"], s[2] + r["decisions"]
+        return {what: rows}, format_table(rows) + "\nall tables: " + "; ".join(
+            f"{k} {c:.1f} s of planning CPU ({f:.1f} in first decisions), {n} decisions"
+            for k, (c, f, n) in sums.items()
+        )
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
 

@@ -178,40 +178,51 @@ def clear_table(scene, planner, spec, seed: int, remember: bool = True):
             return
 
 
-def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: float = 0.0) -> list[dict]:
+def bench_replanning(
+    tables: int = 1, seed: int = 0, progress=None, budget: float = 0.0, scenario: str | None = None
+) -> list[dict]:
     """Planning time of one table's decisions, replayed without the robot: on each seeded
     isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
     physics check lifted, plan again until the table is empty. "before": every group planned
     afresh before each decision and every partial lift reported; "after": the picking
     defaults (failed groups remembered, partial lifts of two or more). With ``budget`` (s),
     "after" against "budget": the defaults with ``planner.loop.decision_budget_s`` = budget.
-    Per table and setting: decisions, objects per decision, physics checks, planning CPU
-    (this thread's) and the part of each decision's CPU past FREE_PLANNING_S summed (what
-    the arm would wait with no lookahead)."""
+    With ``scenario`` (its planner robust): its planner with the robust check's screen off
+    ("unscreened") and on ("screened"). Per table and setting: decisions, objects per
+    decision, physics checks, planning CPU (this thread's), the first decision's, and the part
+    of each decision's CPU past FREE_PLANNING_S summed (what the arm would wait with no
+    lookahead)."""
     from dataclasses import replace
 
-    from mog_drake.scenario import ClutteredScene, Scenario
+    from mog_drake.scenario import ClutteredScene, Scenario, load_scenario
     from mog_drake.sim.verifier import DrakeVerifier
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
 
     settings = ("after", "budget") if budget > 0 else ("before", "after")
+    if scenario is not None:
+        if not load_scenario(scenario).planner.robust.samples:
+            raise MogError(f"bench replanning --scenario: {scenario} sets no planner.robust.samples")
+        settings = ("unscreened", "screened")
     rows, done = [], 0
     for k in range(tables):
         table_seed = seed * 1_000_000 + k
         for setting in settings:
-            sc = Scenario()
+            sc = Scenario() if scenario is None else load_scenario(scenario)
             if setting == "budget":
                 sc.planner.loop.decision_budget_s = budget
             planner = make_planner(sc)
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
+            if setting == "unscreened":
+                planner.verifier.screen = False
             scene = scene_from_spec(ClutteredScene(seed=table_seed))
             n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
-            cpu, past, n_left = 0.0, 0.0, n0
+            cpu, past, n_left, first = 0.0, 0.0, n0, None
             for d, c, left in clear_table(scene, planner, sc.planner, table_seed, setting != "before"):
                 n_left = len(left)
                 cpu += c
+                first = c if first is None else first
                 past += max(0.0, c - FREE_PLANNING_S)
                 decisions += 1
                 checks += d.physics_checks
@@ -228,6 +239,7 @@ def bench_replanning(tables: int = 1, seed: int = 0, progress=None, budget: floa
                     "groups_remembered": remembered,
                     "planning_s": round(planning, 1),
                     "cpu_s": round(cpu, 1),
+                    "first_s": round(first or 0.0, 1),
                     f"cpu_past_{FREE_PLANNING_S:g}s": round(past, 1),
                     "per_decision_s": round(planning / max(decisions, 1), 2),
                 }
