@@ -75,7 +75,7 @@ def meshcat_of(args):
 AT_LEAST_1 = (
     "positions orientations limit scenes objects clusters top candidates scenes_per_class jobs max_physics"
 )
-POSITIVE = ("time_limit", "timeout", "move_timeout", "window", "force", "budget")
+POSITIVE = ("time_limit", "timeout", "move_timeout", "window", "force")
 MOST = {"positions": 10_000, "orientations": 360}
 SUFFIXES = {"output": (".png", ".svg", ".pdf", ".jpg", ".jpeg"), "record": (".html",)}
 

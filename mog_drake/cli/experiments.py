@@ -57,7 +57,6 @@ def add_parsers(sub) -> None:
     )
     sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
-    sp.add_argument("--budget", type=float, help="replanning: the defaults against decision_budget_s = this")
     sp.add_argument(
         "--scenario",
         help="perception: a scenario's camera, perception and world (realism); replanning: a robust "
@@ -78,7 +77,7 @@ def cmd_eval(args) -> None:
 def cmd_bench(args) -> None:
     from mog_drake.experiments import bench
 
-    given = dict(budget=args.budget or 0.0, tables=args.tables, out=args.out or "out/bench_verifier")
+    given = dict(tables=args.tables, out=args.out or "out/bench_verifier")
     emit(
         args,
         *bench.run(

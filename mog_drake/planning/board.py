@@ -38,11 +38,10 @@ class JobClock:
     or ``CPU`` (the CPU time of the job's own thread, from its start). A plain function of
     time is a clock too (`as_clock`, for tests), counted from the job's start as ``CPU``."""
 
-    def __init__(self, name: str, from_request: bool, reader: Callable[[], Callable[[], float]], timer):
+    def __init__(self, name: str, from_request: bool, reader: Callable[[], Callable[[], float]]):
         self.name = name
         self.from_request = from_request  # the job's time counts from its request, not its start
         self._reader = reader
-        self.timer = timer  # read on the job's own thread (the planner's decision budget)
 
     def reader(self) -> Callable[[], float]:
         """The calling thread's time on this clock, as a function any thread can read."""
@@ -57,15 +56,15 @@ def _this_threads_cpu() -> Callable[[], float]:
     return lambda: time.clock_gettime(clock_id)
 
 
-WALL = JobClock("wall", True, lambda: time.perf_counter, time.perf_counter)
-CPU = JobClock("cpu", False, _this_threads_cpu, time.thread_time)
+WALL = JobClock("wall", True, lambda: time.perf_counter)
+CPU = JobClock("cpu", False, _this_threads_cpu)
 
 
 def as_clock(clock: JobClock | Callable[[], float]) -> JobClock:
     """``clock``, or a function of time as a clock (tests)."""
     if isinstance(clock, JobClock):
         return clock
-    return JobClock("custom", False, lambda: clock, clock)
+    return JobClock("custom", False, lambda: clock)
 
 
 class Board:

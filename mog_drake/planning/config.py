@@ -99,14 +99,6 @@ class LoopConfig:
     # Before the run ends on "no grasp found", plan every group again with up to 12 more
     # physics checks each, 48 in all.
     last_resort: bool = True
-    # mog and push-mog: CPU seconds a decision may search for a larger group once it holds a
-    # verified grasp (a partial lift); past them it takes that grasp (0: no limit). Off by
-    # default: replaying the planner on 4 seeded tables (`bench replanning --budget 3`), 3 s
-    # cut the decisions' CPU past 5 s from 29.8 to 2.6 s at 1.57 -> 1.52 objects per
-    # decision, but in the pick loop (table 0, mog) it halved the wait and cost a quarter of
-    # the objects per grasp (1.74 -> 1.32) and 17 % of PPH: a 4-object group's first check
-    # already costs about 2 s, so 3 s left one check for it.
-    decision_budget_s: float = 0.0
 
     def check(self) -> None:
         if self.grouping not in GROUPINGS:
@@ -115,10 +107,6 @@ class LoopConfig:
             )
         if not 0 < self.group_radius <= 0.2:
             raise MogError(f"planner.loop.group_radius must be in (0, 0.2] m, got {self.group_radius}")
-        if not 0 <= self.decision_budget_s <= 600:
-            raise MogError(
-                f"planner.loop.decision_budget_s must be in [0, 600] s, got {self.decision_budget_s}"
-            )
 
 
 @dataclass

@@ -34,8 +34,6 @@ Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`
 * late / post: a lookahead's board (`mog_drake.planning.board`). Before each group the
   verdicts it has posted by then in simulated time join the memory; a group it is planning
   then is waited for, not planned twice. A plan with ``post`` writes its claims and verdicts.
-* decision budget: once the thread has spent ``decision_budget_s`` on the decision (on
-  ``planner.clock``) and holds a verified partial lift, the partial lift is taken.
 """
 
 from __future__ import annotations
@@ -107,8 +105,8 @@ def next_pick(
     to try again), ``failures`` (the previous decision's memory; None: off),
     ``grasp_unrecognised``, ``adjacent`` (push-mog's groups of objects that meet),
     ``exclude`` (objects given up on: `tally_misses`), ``late`` and ``post`` (a late
-    lookahead's board to read, the board to write), and the spec's ``partial_lifts``,
-    ``last_resort`` and ``decision_budget_s``."""
+    lookahead's board to read, the board to write), and the spec's ``partial_lifts``
+    and ``last_resort``."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
@@ -117,7 +115,6 @@ def next_pick(
         )
     mode, last_resort = spec.mode, spec.loop.last_resort
     t0 = time.perf_counter()
-    deadline = planner.clock() + spec.loop.decision_budget_s if spec.loop.decision_budget_s > 0 else None
     if len(scene) == 0:
         return _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0)
     if mode == "mog":
@@ -131,8 +128,6 @@ def next_pick(
         if not groups:
             return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
     partial_lifts = spec.loop.partial_lifts and mode == "mog"
-    if not partial_lifts:
-        deadline = None  # the budget ends a search only with a verified partial lift in hand
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     pending = list(failures or ())  # remembered failures not yet met in this scene
@@ -140,8 +135,6 @@ def next_pick(
     for group in groups:
         if partial_lifts and best is not None and len(best[1]) >= len(group):
             break
-        if best is not None and deadline is not None and planner.clock() > deadline:
-            break  # past the budget: the verified partial lift in hand
         res = around = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
@@ -149,10 +142,8 @@ def next_pick(
         if res is None:
             if post is not None and failures is not None:
                 post.claim(group, around)
-            res = planner.plan(
-                scene, group, rng=rng, avoid=avoid, deadline=deadline, fallback=best is not None
-            )
-        if failures is not None and not res.found and not res.cut_short:
+            res = planner.plan(scene, group, rng=rng, avoid=avoid)
+        if failures is not None and not res.found:
             seen.append(FailedGroup(tuple(res.group), around, res))
             if post is not None:
                 post.post(seen[-1])

@@ -85,8 +85,6 @@ class PlanResult:
     # The tested candidate that lifted the most objects without an error, even if not the
     # whole group: (grasp, lifted ids). A verified grasp of those objects.
     best_lift: tuple[np.ndarray, list[int]] | None = None
-    # The caller's deadline ended the plan before its cap: not a verdict on the group.
-    cut_short: bool = False
 
     @property
     def found(self) -> bool:
@@ -139,8 +137,6 @@ class GraspPlanner:
     ):
         self.verifier = verifier
         self.config = config or GraspConfig()
-        # The clock of ``plan``'s ``deadline`` (read on the planning thread).
-        self.clock = time.thread_time
         self.gripper = gripper or GripperGeometry()
         # Regions of the table (xmin, xmax, ymin, ymax) the open jaws must not enter: the
         # cell's fixtures (the bin), which the physics check does not model.
@@ -159,16 +155,12 @@ class GraspPlanner:
         method: str | None = None,
         avoid=(),
         skip=(),
-        deadline: float | None = None,
-        fallback: bool = False,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
-        goes on where the earlier one stopped. ``deadline``: a time of this thread's ``clock``
-        (its CPU time unless set) past which no more candidates are simulated once a verified
-        grasp is in hand: this plan's partial lift, or (``fallback``) the caller's."""
+        goes on where the earlier one stopped."""
         method, group = _method_and_group(method or self.config.method, group, rng)
         cfg = self.config
         t_start = time.perf_counter()
@@ -211,13 +203,10 @@ class GraspPlanner:
         if skip:
             order = order[~np.isin(order, skip)]
 
-        grasp, last, tested, best_lift, cut = None, None, [], None, False
+        grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()
         for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
             if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
-                break
-            if deadline is not None and (fallback or best_lift is not None) and self.clock() > deadline:
-                cut = True
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
@@ -241,7 +230,6 @@ class GraspPlanner:
             tested,
             cands,
             best_lift,
-            cut,
         )
 
     def _candidates(self, polys, group):

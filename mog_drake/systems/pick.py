@@ -40,10 +40,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
         scales = [perturbation_scales(spec.robust, k, MAX_OBJECTS) for k in range(spec.robust.samples)]
         variants = [check.variant(s) if verifier is None else verifier for s in scales]
         check = RobustVerifier(check, variants, spec.robust)
-    planner = GraspPlanner(check, spec.grasp, keep_out=scenario.keep_out())
-    # decision_budget_s is counted on the planning thread's clock (its CPU time, or the wall's).
-    planner.clock = scenario.latency.clock.timer
-    return planner
+    return GraspPlanner(check, spec.grasp, keep_out=scenario.keep_out())
 
 
 def arm_view(scenario: Scenario, intrinsics) -> ArmView:

@@ -523,7 +523,6 @@ _scenario_keys = st.sampled_from(
         "planner.mode",
         "planner.grasp.diameter_condition",
         "verifier.bodies",
-        "planner.loop.decision_budget_s",
         "planner.pushes.speed",
         "planner.pushes.max_per_table",
         "planner.grasp.max_physics",

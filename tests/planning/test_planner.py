@@ -589,48 +589,6 @@ def test_objects_given_up_on_are_not_planned_and_alone_they_end_the_run():
         assert d.status == "gave_up" and d.grasp is None
 
 
-def test_past_its_budget_a_decision_takes_the_verified_partial_lift_in_hand():
-    """Two rows of three bars. Every check costs 50 ms of this thread's CPU. Row A's first
-    check lifts two of its bars, no check lifts all three; row B's third check lifts all of
-    it. Without a budget (0) the decision finishes A's plan, plans B and takes B's grasp of 3.
-    With a 0.08 s budget it stops after A's second check and takes the verified pair; A's
-    plan, cut short, is not remembered as a group without a grasp."""
-    import time
-
-    from mog_drake.planning.picking import next_pick
-
-    row = [("thin_bar", x, 0.0, math.pi / 2) for x in (-0.012, 0.0, 0.012)]
-    far = [("thin_bar", x, 0.2, math.pi / 2) for x in (-0.012, 0.0, 0.012)]
-    scene = make_scene(row + far)
-
-    class Costly(FakeVerifier):
-        def check(self, scene, group, grasp):
-            end = time.thread_time() + 0.05
-            while time.thread_time() < end:
-                pass
-            self.asked.append(tuple(group))
-            n = sum(g == tuple(group) for g in self.asked)
-            if tuple(group) == (0, 1, 2) and n == 1:
-                return GraspResult(False, lifted=[0, 1])
-            if tuple(group) == (3, 4, 5) and n == 3:
-                return GraspResult(True, lifted=[3, 4, 5])
-            return GraspResult(False)
-
-    cfg = GraspConfig("gp", max_physics=4)
-    v = Costly()
-    d = next_pick(
-        scene, GraspPlanner(v, cfg), PlannerSpec(loop=LoopConfig(decision_budget_s=0.0)), failures=()
-    )
-    assert d.status == "grasp" and d.expected == (3, 4, 5) and v.asked.count((0, 1, 2)) == 4
-    v = Costly()
-    d = next_pick(
-        scene, GraspPlanner(v, cfg), PlannerSpec(loop=LoopConfig(decision_budget_s=0.08)), failures=()
-    )
-    assert d.status == "grasp" and d.partial and d.expected == (0, 1)
-    assert v.asked == [(0, 1, 2), (0, 1, 2)]
-    assert d.plans[0].cut_short and not any(f.group == (0, 1, 2) for f in d.failures)
-
-
 def test_a_decision_reads_the_lookaheads_board_at_its_own_simulated_time():
     """Three lone objects, no grasp for any (one physics check each, 1 s of the decision's
     clock per check). The lookahead, requested at t = 0, is planning the first group from 0 to

@@ -24,7 +24,6 @@ def run(
     seed: int = 0,
     toppled: int = 0,
     progress: bool = True,
-    budget: float = 0.0,
     tables: int = 3,
     out=None,
     scenario: str | None = None,
@@ -71,7 +70,7 @@ def run(
         from mog_drake.experiments.bench.station import bench_replanning
 
         bar = Progress(2 * scenes, "replanning", enabled=progress)
-        rows = bench_replanning(scenes, seed, bar, budget, scenario)
+        rows = bench_replanning(scenes, seed, bar, scenario)
         sums = {}
         for r in rows:
             s = sums.setdefault(r["setting"], [0.0, 0.0, 0])

@@ -179,15 +179,13 @@ def clear_table(scene, planner, spec, seed: int, remember: bool = True):
 
 
 def bench_replanning(
-    tables: int = 1, seed: int = 0, progress=None, budget: float = 0.0, scenario: str | None = None
+    tables: int = 1, seed: int = 0, progress=None, scenario: str | None = None
 ) -> list[dict]:
     """Planning time of one table's decisions, replayed without the robot: on each seeded
     isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
     physics check lifted, plan again until the table is empty. "before": every group planned
     afresh before each decision and every partial lift reported; "after": the picking
-    defaults (failed groups remembered, partial lifts of two or more). With ``budget`` (s),
-    "after" against "budget": the defaults with ``planner.loop.decision_budget_s`` = budget.
-    With ``scenario`` (its planner robust): its planner with the robust check's screen off
+    defaults (failed groups remembered, partial lifts of two or more). With ``scenario`` (its planner robust): its planner with the robust check's screen off
     ("unscreened") and on ("screened"). Per table and setting: decisions, objects per
     decision, physics checks, planning CPU (this thread's), the first decision's, and the part
     of each decision's CPU past FREE_PLANNING_S summed (what the arm would wait with no
@@ -199,7 +197,7 @@ def bench_replanning(
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
 
-    settings = ("after", "budget") if budget > 0 else ("before", "after")
+    settings = ("before", "after")
     if scenario is not None:
         if not load_scenario(scenario).planner.robust.samples:
             raise MogError(f"bench replanning --scenario: {scenario} sets no planner.robust.samples")
@@ -209,8 +207,6 @@ def bench_replanning(
         table_seed = seed * 1_000_000 + k
         for setting in settings:
             sc = Scenario() if scenario is None else load_scenario(scenario)
-            if setting == "budget":
-                sc.planner.loop.decision_budget_s = budget
             planner = make_planner(sc)
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
