@@ -260,7 +260,7 @@ def _add_arm(plant, scenario: Scenario, world, gripper: GripperGeometry):
 def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     """Builds the simulated station (see `mog_drake.station` for its ports). Returns
     (diagram, handles)."""
-    scene = scene or scene_from_spec(scenario.scene)
+    scene = scene if scene is not None else scene_from_spec(scenario.scene)
     gripper = GripperGeometry()
     # The world's own values: the planner's model unless scenario.realism draws others.
     world = scenario.realism.draw(getattr(scenario.scene, "seed", 0), len(scene))

@@ -15,6 +15,7 @@ from mog_drake.station import (
     MakeStation,
     render_still,
     rendered_intrinsics,
+    scene_from_spec,
 )
 
 
@@ -908,3 +909,15 @@ def test_bars_lying_on_their_side_come_to_rest_on_the_table():
     creep = [np.linalg.norm(plant.EvalBodyPoseInWorld(pctx, b).translation() - p) for b, p in zip(bodies, p0)]
     assert (worst[:, 0] < 0.01).all() and (worst[:, 1] < 1e-3).all(), worst
     assert max(creep) < 5e-4, creep
+
+
+def test_an_empty_scene_builds_a_station_with_no_objects():
+    """An empty Scene is falsy; the station must still build it, not the scenario's table."""
+    from dataclasses import replace
+
+    sc = Scenario(scene=ClutteredScene(seed=0, n_objects=3))
+    empty = replace(scene_from_spec(sc.scene), objects=[])
+    _, h = MakeStation(sc, empty)
+    assert len(h.bodies) == 0 and len(h.scene) == 0
+    _, h = MakeStation(sc)
+    assert len(h.bodies) == 3
