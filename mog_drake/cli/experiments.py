@@ -57,11 +57,7 @@ def add_parsers(sub) -> None:
     )
     sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
-    sp.add_argument(
-        "--scenario",
-        help="perception: a scenario's camera, perception and world (realism); replanning: a robust "
-        "planner's, its screen off and on",
-    )
+    sp.add_argument("--scenario", help="perception: a scenario's cell; replanning: a robust planner's")
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)
