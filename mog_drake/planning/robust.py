@@ -12,8 +12,9 @@ k-th variant verifier's own (built once, by the caller), so each keeps its built
 Before any physics, a screen: in a sample whose moved poses put an object under the open
 jaws, the group is not lifted (the perturbed check would end there too). When too few
 samples are left clear to reach ``required``, the grasp is refused without simulating
-anything, not even the nominal check, whose lifts a refused grasp could not keep anyway.
-On the realistic cell's first decisions every perturbed check that failed failed this way.
+anything, not even the nominal check: a grasp whose jaws may land on an object is not
+taken, whole or as a partial lift. On the realistic cell 33 of the hardest world's 37
+refusals in mog's replayed decisions (tables 0-5) were this one (docs/design.md).
 
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
