@@ -91,8 +91,8 @@ def station_state(handles, x, sleep, retired, t: float, t_good: float | None = N
     q, v = x[: plant.num_positions()], x[plant.num_positions() :]
     speeds = []
     for i, body in handles.bodies.items():
-        start = body.floating_velocities_start_in_v()
-        p = q[body.floating_positions_start() + 4 : body.floating_positions_start() + 7]
+        start, at = body.floating_velocities_start_in_v(), body.floating_positions_start()
+        p = q[at + 4 : at + 7]  # after the quaternion: the origin's position
         speeds.append((float(np.linalg.norm(v[start + 3 : start + 6])), i, p))
     speeds.sort(key=lambda s: -np.inf if np.isnan(s[0]) else -s[0])  # non-finite first
     fastest = ", ".join(

@@ -185,7 +185,8 @@ def bench_replanning(
     isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
     physics check lifted, plan again until the table is empty. "before": every group planned
     afresh before each decision and every partial lift reported; "after": the picking
-    defaults (failed groups remembered, partial lifts of two or more). With ``scenario`` (its planner robust): its planner with the robust check's screen off
+    defaults (failed groups remembered, partial lifts of two or more). With ``scenario`` (a
+    file whose planner is robust): its planner with the robust check's screen off
     ("unscreened") and on ("screened"). Per table and setting: decisions, objects per
     decision, physics checks, planning CPU (this thread's), the first decision's, and the part
     of each decision's CPU past FREE_PLANNING_S summed (what the arm would wait with no
@@ -197,17 +198,16 @@ def bench_replanning(
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
 
-    settings = ("before", "after")
+    sc, settings = Scenario(), ("before", "after")
     if scenario is not None:
-        if not load_scenario(scenario).planner.robust.samples:
+        sc, settings = load_scenario(scenario), ("unscreened", "screened")
+        if not sc.planner.robust.samples:
             raise MogError(f"bench replanning --scenario: {scenario} sets no planner.robust.samples")
-        settings = ("unscreened", "screened")
     rows, done = [], 0
     for k in range(tables):
         table_seed = seed * 1_000_000 + k
         for setting in settings:
-            sc = Scenario() if scenario is None else load_scenario(scenario)
-            planner = make_planner(sc)
+            planner = make_planner(sc)  # a new planner (and its plants) per table and setting
             if setting == "before":
                 planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
             if setting == "unscreened":
