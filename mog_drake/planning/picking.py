@@ -307,7 +307,9 @@ def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoi
         if spent >= LAST_RESORT_TOTAL:
             return
         deeper.config = replace(
-            planner.config, max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent)
+            planner.config,
+            max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent),
+            max_physics_large=None,
         )
         res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=first.tested_indices)
         decision.plans.append(res)

@@ -29,7 +29,7 @@ from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
 from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
-from mog_drake.planning.config import METHODS, GraspConfig
+from mog_drake.planning.config import LARGE_GROUP, METHODS, GraspConfig
 from mog_drake.planning.protocol import GraspResult, Verifier
 
 _RANKED = {"gp": True, "rand-phys": False, "rank-phys": True, "rand-fil-phys": False, "single": True}
@@ -203,10 +203,13 @@ class GraspPlanner:
         if skip:
             order = order[~np.isin(order, skip)]
 
+        cap = cfg.max_physics
+        if cfg.max_physics_large is not None and len(group) >= LARGE_GROUP:
+            cap = cfg.max_physics_large if cap is None else min(cap, cfg.max_physics_large)
         grasp, last, tested, best_lift = None, None, [], None
         t = time.perf_counter()
         for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
-            if cfg.max_physics is not None and len(tested) >= cfg.max_physics:
+            if cap is not None and len(tested) >= cap:
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))

@@ -239,6 +239,24 @@ def test_last_resort_plans_deeper_before_giving_up():
     assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
 
 
+def test_a_large_group_gets_fewer_checks_and_the_last_resort_goes_past_them(scene):
+    """max_physics_large caps the checks of a group of three objects, a pair keeps
+    max_physics; before a decision gives up, the last resort goes on past the cap."""
+    from mog_drake.planning.picking import next_pick
+
+    trio, pair = tuple(scene.group), tuple(scene.group[:2])
+    assert len(trio) == 3
+    order = FakeVerifier()
+    GraspPlanner(order, GraspConfig("gp", max_physics=10)).plan(scene, trio)
+    cfg = GraspConfig("gp", max_physics=4, max_physics_large=2)
+    assert GraspPlanner(FakeVerifier(), cfg).plan(scene, trio).tested == 2
+    assert GraspPlanner(FakeVerifier(), cfg).plan(scene, pair).tested == 4
+    v = FakeVerifier(good=[order.asked[4]])  # the trio's fifth candidate lifts it
+    d = next_pick(scene, GraspPlanner(v, cfg))
+    assert d.status == "grasp" and d.last_resort and d.group == trio
+    assert d.plans[0].group == trio and d.plans[0].tested == 2
+
+
 def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     """Three bars in a row: physics never lifts all three, but one candidate lifts two.
     With partial lifts that verified pair is the grasp (no pair or single is planned);
