@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from mog_drake.cli.common import emit
 from mog_drake.experiments.bench import BENCHES
+from mog_drake.planning.config import MODES
 
 
 def add_sweep(sp) -> None:
@@ -57,7 +58,10 @@ def add_parsers(sub) -> None:
     )
     sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
-    sp.add_argument("--scenario", help="perception: a scenario's cell; replanning: a robust planner's")
+    sp.add_argument("--scenario", help="perception: a scenario's cell; replanning: its planner")
+    sp.add_argument(
+        "--mode", choices=MODES, help="replanning: the planner's mode (the scenario's when not given)"
+    )
     sp.add_argument("--seed", type=int, default=0)
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_bench)
@@ -77,6 +81,13 @@ def cmd_bench(args) -> None:
     emit(
         args,
         *bench.run(
-            args.what, args.scenes, args.seed, args.toppled, not args.json, scenario=args.scenario, **given
+            args.what,
+            args.scenes,
+            args.seed,
+            args.toppled,
+            not args.json,
+            scenario=args.scenario,
+            mode=args.mode,
+            **given,
         ),
     )

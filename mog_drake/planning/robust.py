@@ -61,9 +61,8 @@ class RobustVerifier:
     """``base``: the nominal check; ``variants``: one verifier per sample, each with its own
     friction and mass (`perturbation_scales`)."""
 
-    def __init__(self, base, variants, config: RobustConfig, screen: bool = True):
+    def __init__(self, base, variants, config: RobustConfig):
         self.base, self.variants, self.config = base, list(variants), config
-        self.screen = screen  # off: every sample is simulated (`bench replanning` compares)
         self.required = config.required or config.samples
         if len(self.variants) != config.samples:
             raise ValueError(f"{config.samples} samples need as many variants, got {len(self.variants)}")
@@ -96,7 +95,7 @@ class RobustVerifier:
         worlds = [self.perturbed(scene, group, grasp, k) for k in range(len(self.variants))]
         gripper = getattr(self.base, "gripper", None)
         g = np.asarray(grasp, dtype=float)[None, :]
-        clear = [not self.screen or bool(jaw_collision_free(w.polygons(), g, gripper)[0]) for w in worlds]
+        clear = [bool(jaw_collision_free(w.polygons(), g, gripper)[0]) for w in worlds]
         if sum(clear) < self.required:
             n = len(clear) - sum(clear)
             return GraspResult(

@@ -90,8 +90,14 @@ def test_scene_show_with_a_grasp(tmp_path, capsys):
     assert code == 2 and "--tables must be at least 0, got -1" in err and err.count("\n") == 1
     code, _, err = run(capsys, "bench", "rest", "--scenes", "26")
     assert code == 2 and "copies per shape (--scenes) must be 1..25, got 26" in err and err.count("\n") == 1
-    code, _, err = run(capsys, "bench", "replanning", "--scenario", "models/scenario.yaml")
-    assert code == 2 and "models/scenario.yaml sets no planner.robust.samples" in err and err.count("\n") == 1
+    uncapped = tmp_path / "uncapped.yaml"
+    uncapped.write_text("planner:\n  grasp:\n    max_physics_large: null\n")
+    code, _, err = run(capsys, "bench", "replanning", "--scenario", str(uncapped))
+    assert (
+        code == 2
+        and "uncapped.yaml sets none below planner.grasp.max_physics" in err
+        and err.count("\n") == 1
+    )
 
 
 def test_every_eval_takes_summary_only(tmp_path, capsys):

@@ -27,6 +27,7 @@ def run(
     tables: int = 3,
     out=None,
     scenario: str | None = None,
+    mode: str | None = None,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""
     from mog_drake.progress import Progress
@@ -70,14 +71,20 @@ def run(
         from mog_drake.experiments.bench.station import bench_replanning
 
         bar = Progress(2 * scenes, "replanning", enabled=progress)
-        rows = bench_replanning(scenes, seed, bar, scenario)
+        rows = bench_replanning(scenes, seed, bar, scenario, mode)
         sums = {}
         for r in rows:
-            s = sums.setdefault(r["setting"], [0.0, 0.0, 0])
-            s[0], s[1], s[2] = s[0] + r["cpu_s"], s[1] + r["first_s"], s[2] + r["decisions"]
-        return {what: rows}, format_table(rows) + "\nall tables: " + "; ".join(
-            f"{k} {c:.1f} s of planning CPU ({f:.1f} in first decisions), {n} decisions"
-            for k, (c, f, n) in sums.items()
+            s = sums.setdefault(r["large groups"], [0.0, 0.0, 0.0, 0])
+            past = next(v for k, v in r.items() if k.startswith("cpu_past"))
+            s[0], s[1], s[2], s[3] = (
+                s[0] + r["cpu_s"],
+                s[1] + r["first_s"],
+                s[2] + past,
+                s[3] + r["decisions"],
+            )
+        return {what: rows}, format_table(rows) + "\nall tables, groups of three or more with: " + "; ".join(
+            f"{k} {c:.1f} s of planning CPU ({f:.1f} in first decisions, {p:.1f} past the free time), {n} decisions"
+            for k, (c, f, p, n) in sums.items()
         )
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text

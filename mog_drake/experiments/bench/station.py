@@ -144,100 +144,103 @@ def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     return rows
 
 
-# The time a decision has beside the arm (s): the next image is taken as the arm leaves for
-# the bin, and the arm is back at the observe pose about 5 s later (v8's mog tables).
-FREE_PLANNING_S = 5.0
+# The time a decision has beside the arm (s): the next image is taken as the arm leaves the
+# table, and the arm going on from over the bin needs the next grasp about 1 s later (the
+# median in v22_shipped's push-mog runs, models/realistic.yaml's cycle).
+FREE_PLANNING_S = 1.0
 
 
 def clear_table(scene, planner, spec, seed: int, remember: bool = True):
     """Clears ``scene`` by decisions without the robot: plan (`next_pick`, its random draws
     seeded with ``seed``; ``remember``: failed groups remembered across decisions), remove the
     objects the physics check lifted, plan again, until the table is empty, a decision finds
-    no grasp, or three decisions per object. Yields (decision, its CPU time on this thread,
-    the table left after it)."""
-    import time
-
+    no grasp, or three decisions per object. In push-mog a push leaves the table where its
+    simulation did (at most ``spec.pushes.max_per_table``), and its grasp follows. Yields
+    (decision, its CPU time on this thread, the table left after it)."""
     from mog_drake.planning.picking import next_pick
     from mog_drake.scenes import Scene
 
     rng, failures = np.random.default_rng(seed), () if remember else None
+    pushes = spec.pushes.max_per_table if spec.mode == "push-mog" else 0
     for _ in range(3 * len(scene)):
         if not len(scene):
             return
         c0 = time.thread_time()
-        d = next_pick(scene, planner, spec, rng=rng, failures=failures)
+        d = next_pick(scene, planner, spec, rng=rng, failures=failures, pushes_left=pushes)
         cpu = time.thread_time() - c0
         failures = d.failures if remember else None
-        if d.status == "grasp":
+        if d.status == "push":
+            pushes -= 1
+            scene = d.after
+        if d.status in ("grasp", "push") and d.grasp is not None:
             gone = set(d.expected) or set(d.group)
             scene = Scene(
                 [o for i, o in enumerate(scene.objects) if i not in gone], scene.library, scene.table
             )
         yield d, cpu, scene
-        if d.status != "grasp":
+        if d.status not in ("grasp", "push"):
             return
 
 
 def bench_replanning(
-    tables: int = 1, seed: int = 0, progress=None, scenario: str | None = None
+    tables: int = 1, seed: int = 0, progress=None, scenario: str | None = None, mode: str | None = None
 ) -> list[dict]:
-    """Planning time of one table's decisions, replayed without the robot: on each seeded
-    isrr33 table (the scene seeds of ``eval picking --seed``), plan, remove the objects the
-    physics check lifted, plan again until the table is empty. "before": every group planned
-    afresh before each decision and every partial lift reported; "after": the picking
-    defaults (failed groups remembered, partial lifts of two or more). With ``scenario`` (a
-    file whose planner is robust): its planner with the robust check's screen off
-    ("unscreened") and on ("screened"). Per table and setting: decisions, objects per
-    decision, physics checks, planning CPU (this thread's), the first decision's, and the part
-    of each decision's CPU past FREE_PLANNING_S summed (what the arm would wait with no
-    lookahead)."""
+    """Planning time of one table's decisions, replayed without the robot (`clear_table`) on
+    each seeded isrr33 table (the scene seeds of ``eval picking --seed``), with ``scenario``'s
+    planner (the default one when None) in ``mode`` (the scenario's when None), and again with
+    groups of three or more checked as often as any (``planner.grasp.max_physics_large``
+    off). Per table and setting: decisions, objects per decision, physics checks, planning
+    CPU (this thread's), the first decision's, and the part of each decision's CPU past
+    FREE_PLANNING_S summed (what the arm would wait with no lookahead)."""
     from dataclasses import replace
 
     from mog_drake.scenario import ClutteredScene, Scenario, load_scenario
-    from mog_drake.sim.verifier import DrakeVerifier
     from mog_drake.station import scene_from_spec
     from mog_drake.systems.pick import make_planner
 
-    sc, settings = Scenario(), ("before", "after")
-    if scenario is not None:
-        sc, settings = load_scenario(scenario), ("unscreened", "screened")
-        if not sc.planner.robust.samples:
-            raise MogError(f"bench replanning --scenario: {scenario} sets no planner.robust.samples")
+    sc = Scenario() if scenario is None else load_scenario(scenario)
+    spec = replace(sc.planner, mode=mode or sc.planner.mode)
+    spec.check()
+    grasp = spec.grasp
+    if (
+        grasp.max_physics_large is None
+        or grasp.max_physics is None
+        or grasp.max_physics_large >= grasp.max_physics
+    ):
+        raise MogError(
+            f"bench replanning compares planner.grasp.max_physics_large with none: {scenario or 'the default scenario'} "
+            "sets none below planner.grasp.max_physics"
+        )
+    settings = {
+        f"{grasp.max_physics} checks": replace(grasp, max_physics_large=None),
+        f"{grasp.max_physics_large} checks": grasp,
+    }
     rows, done = [], 0
     for k in range(tables):
         table_seed = seed * 1_000_000 + k
-        for setting in settings:
+        for setting, config in settings.items():
             planner = make_planner(sc)  # a new planner (and its plants) per table and setting
-            if setting == "before":
-                planner.verifier = DrakeVerifier(replace(planner.verifier.config, report_partial_lifts=1))
-            if setting == "unscreened":
-                planner.verifier.screen = False
+            planner.config = config
             scene = scene_from_spec(ClutteredScene(seed=table_seed))
-            n0, decisions, checks, remembered, planning = len(scene), 0, 0, 0, 0.0
-            cpu, past, n_left, first = 0.0, 0.0, n0, None
-            for d, c, left in clear_table(scene, planner, sc.planner, table_seed, setting != "before"):
+            n0, decisions, checks, cpu, past, n_left, first = len(scene), 0, 0, 0.0, 0.0, len(scene), None
+            for d, c, left in clear_table(scene, planner, spec, table_seed):
                 n_left = len(left)
                 cpu += c
                 first = c if first is None else first
                 past += max(0.0, c - FREE_PLANNING_S)
                 decisions += 1
                 checks += d.physics_checks
-                remembered += d.remembered
-                planning += d.planning_time
             rows.append(
                 {
                     "table_seed": table_seed,
-                    "setting": setting,
+                    "large groups": setting,
                     "decisions": decisions,
                     "objects_per_decision": round((n0 - n_left) / max(decisions, 1), 2),
                     "objects_left": n_left,
                     "physics_checks": checks,
-                    "groups_remembered": remembered,
-                    "planning_s": round(planning, 1),
                     "cpu_s": round(cpu, 1),
                     "first_s": round(first or 0.0, 1),
                     f"cpu_past_{FREE_PLANNING_S:g}s": round(past, 1),
-                    "per_decision_s": round(planning / max(decisions, 1), 2),
                 }
             )
             done += 1
