@@ -240,7 +240,7 @@ def run(
     return summary, results
 
 
-WAIT_KINDS = {
+WAIT_KINDS = {  # a decision's ``lookahead``: "merged" in sweeps made while the board existed
     "first": "a table's first decision",
     "used": "lookahead in time",
     "merged": "lookahead late, its board read",

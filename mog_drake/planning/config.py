@@ -165,16 +165,11 @@ class LookaheadConfig:
     worker, while the arm executes it. In the next image, every group whose surroundings are
     where they were (3 mm) is replayed from that plan with no physics: its failure, or its
     grasp. Only the groups the grasp disturbed are simulated again. In push-mog it considers
-    pushes too: a push that paid is replayed, with its grasp."""
+    pushes too: a push that paid is replayed, with its grasp. A lookahead not done when the
+    next image comes is dropped (reading its verdicts as they came, and waiting for it, were
+    tried and did not pay: docs/experiments.md)."""
 
     enabled: bool = True
-    # When the next image comes before the lookahead is done (measured latencies), its plan
-    # starts at once and reads the lookahead's board (mog_drake.planning.board): the verdicts
-    # visible by then in simulated time are replayed, and a group the lookahead is simulating
-    # then is waited for, not simulated twice (off: the lookahead is dropped). It never
-    # simulates more than a plan without them. (Waiting for the whole lookahead instead was
-    # tried and measured worse: docs/experiments.md.)
-    merge: bool = True
 
 
 @dataclass

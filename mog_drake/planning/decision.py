@@ -99,13 +99,6 @@ def _same_group(f_group, f_around, group, around) -> dict[int, int] | None:
     return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
 
 
-def _unknown(entries, *known) -> list:
-    """``entries`` less those (the same objects) in any of ``known``: the lookahead's memory
-    holds the entries it was given, which the decision has already."""
-    have = {id(f) for k in known for f in k}
-    return [f for f in entries if id(f) not in have]
-
-
 def _recall(pending: list, group, around, avoid) -> tuple[bool, PlanResult | None]:
     """The first remembered verdict in ``pending`` of ``group`` with ``around`` (taken out of
     ``pending``): (True, its replay), or (True, None) when its grasp repeats one to avoid;
@@ -171,13 +164,6 @@ class PickDecision:
     remembered: int = 0  # groups not planned again: their failure was remembered
     # push-mog: pushes not simulated now: they did not pay before, or the lookahead found them to pay
     remembered_pushes: int = 0
-    # The lookahead's verdicts came in while this decision was planned (``late``); the
-    # simulated time it waited for them beyond its own clock (s).
-    merged: bool = False
-    waited: float = 0.0
-    from_board: int = 0  # verdicts taken from the lookahead's board
-    # The entry of the grasp found, as posted on a board (``post``; see `lookahead`).
-    found_entry: FailedGroup | None = None
     # What to remember for the next decision: failures seen (or replayed) now, then the older
     # ones not met this time (see next_pick's ``failures``).
     failures: tuple[FailedGroup | FailedPush | PaidPush, ...] = ()
@@ -207,8 +193,5 @@ class PickDecision:
             "planning_time": self.planning_time,
             "remembered": self.remembered,
             "remembered_pushes": self.remembered_pushes,
-            "merged": self.merged,
-            "waited": self.waited,
-            "from_board": self.from_board,
             **({"lone": self.lone} if self.lone else {}),
         }

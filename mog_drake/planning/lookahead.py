@@ -1,12 +1,11 @@
 """Planning ahead (an extension of Alg. 1): while the arm carries a grasp to the bin, the next
-decision is planned on the table as it will be without the grasped objects, writing each
-verdict on a board (`mog_drake.planning.board`) that the real decision reads."""
+decision is planned on the table as it will be without the grasped objects; the real
+decision replays its verdicts."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
-from mog_drake.planning.board import Board
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import MEMORY_SIZE, FailedGroup, FailedPush, PaidPush, PickDecision, _around
 from mog_drake.planning.picking import next_pick
@@ -24,7 +23,6 @@ def lookahead(
     avoid=(),
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
-    board: Board | None = None,
 ) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
     """What the next decision can reuse, planned before its image (an extension; see
     `PlannerSpec.lookahead`): the memory of `next_pick` (``failures``) planned on ``scene``
@@ -36,48 +34,13 @@ def lookahead(
     push-mog, with ``pushes_left`` above 0: the pushes are considered too, as the decision
     would. The pushes that did not pay join the memory (`FailedPush`), and a push that paid
     with its grasp (`PaidPush`), which the next decision replays with no physics if its
-    objects are where they were: a push decision simulates pushes and their grasps (6-10 s of
-    CPU), which the lookahead does while the arm moves.
-
-    board: where the next decision, if its image comes first, reads this plan as it goes (see
-    `mog_drake.planning.board`): each group as it is simulated, each verdict, and at the end
-    the rest of the memory. It is finished however this returns."""
-    if board is not None:
-        board.start()
-    try:
-        memory = _lookahead(
-            scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board
-        )
-        if board is not None:
-            for entry in memory:
-                board.post(entry)  # those posted already are not posted twice
-        return memory
-    finally:
-        if board is not None:
-            board.finish()
-
-
-def without_grasped(scene, decision: PickDecision) -> Scene:
-    """``scene`` without the objects ``decision``'s grasp takes (its group and what the
-    physics check lifted), as the lookahead plans it."""
-    gone = set(decision.group) | set(decision.expected)
-    return replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)
-
-
-def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, pushes_left, board):
+    objects are where they were: a push decision simulates pushes and their grasps, which
+    the lookahead does while the arm moves."""
     rest = without_grasped(scene, decision)
     if len(rest) == 0:
         return ()
     ahead = next_pick(
-        rest,
-        planner,
-        spec,
-        rng,
-        avoid,
-        decision.failures,
-        grasp_unrecognised,
-        pushes_left=pushes_left,
-        post=board,
+        rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=pushes_left
     )
     memory = list(ahead.failures)
     found = ahead.plans[-1] if ahead.plans else None  # Alg. 1's grasp (a push's too)
@@ -87,10 +50,14 @@ def _lookahead(scene, decision, planner, spec, rng, avoid, grasp_unrecognised, p
         and found is not None
         and found.found
     ):
-        entry = ahead.found_entry
-        if entry is None or entry.result is not found:
-            entry = FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found)
-        memory.insert(0, entry)
+        memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
     if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
         memory.insert(0, paid)
     return tuple(memory[:MEMORY_SIZE])
+
+
+def without_grasped(scene, decision: PickDecision) -> Scene:
+    """``scene`` without the objects ``decision``'s grasp takes (its group and what the
+    physics check lifted), as the lookahead plans it."""
+    gone = set(decision.group) | set(decision.expected)
+    return replace(scene, objects=[o for i, o in enumerate(scene.objects) if i not in gone], group=None)

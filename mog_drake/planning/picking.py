@@ -31,9 +31,6 @@ Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`
   a push is taken when worth more (`mog_drake.planning.pushing`).
 * exclude: no group holding an object given up on (`tally_misses`) is planned; when they are
   all that is left, the status is "gave_up".
-* late / post: a lookahead's board (`mog_drake.planning.board`). Before each group the
-  verdicts it has posted by then in simulated time join the memory; a group it is planning
-  then is waited for, not planned twice. A plan with ``post`` writes its claims and verdicts.
 """
 
 from __future__ import annotations
@@ -50,7 +47,6 @@ from mog_drake.geometry import ranked_groups
 from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP
-from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import (
     MEMORY_SIZE,
@@ -60,10 +56,8 @@ from mog_drake.planning.decision import (
     PickDecision,
     _around,
     _recall,
-    _same_group,
-    _unknown,
 )
-from mog_drake.planning.planner import GraspPlanner, PlanResult
+from mog_drake.planning.planner import GraspPlanner
 from mog_drake.planning.pushing import _consider_pushes, lone_reason
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
@@ -94,8 +88,6 @@ def next_pick(
     pushes_left: int = 0,
     adjacent: float = 0.0,
     exclude=(),
-    late: BoardReader | None = None,
-    post: Board | None = None,
 ) -> PickDecision:
     """The next grasp for the objects of ``scene``, as ``spec`` (`PlannerSpec`, its defaults
     when None) says, with the given grasp planner: mode "mog" is Alg. 1 (the largest groups
@@ -104,15 +96,12 @@ def next_pick(
     more). The extensions, each described in the module's docstring: ``avoid`` (grasps not
     to try again), ``failures`` (the previous decision's memory; None: off),
     ``grasp_unrecognised``, ``adjacent`` (push-mog's groups of objects that meet),
-    ``exclude`` (objects given up on: `tally_misses`), ``late`` and ``post`` (a late
-    lookahead's board to read, the board to write), and the spec's ``partial_lifts``
-    and ``last_resort``."""
+    ``exclude`` (objects given up on: `tally_misses`), and the spec's ``partial_lifts`` and
+    ``last_resort``."""
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
-        return _push_mog(
-            scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post
-        )
+        return _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude)
     mode, last_resort = spec.mode, spec.loop.last_resort
     t0 = time.perf_counter()
     if len(scene) == 0:
@@ -138,22 +127,16 @@ def next_pick(
         res = around = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            res = _remembered(group, around, pending, failures, avoid, late, decision)
+            _, res = _recall(pending, group, around, avoid)
+            decision.remembered += res is not None
         if res is None:
-            if post is not None and failures is not None:
-                post.claim(group, around)
             res = planner.plan(scene, group, rng=rng, avoid=avoid)
         if failures is not None and not res.found:
             seen.append(FailedGroup(tuple(res.group), around, res))
-            if post is not None:
-                post.post(seen[-1])
         decision.plans.append(res)
         decision.groups_tried += 1
         decision.physics_checks += res.tested
         if res.found:
-            if post is not None and failures is not None:
-                decision.found_entry = FailedGroup(tuple(res.group), around, res)
-                post.post(decision.found_entry)
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
             decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
             break
@@ -166,16 +149,12 @@ def next_pick(
         _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
     if failures is not None:
         decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
-    if late is not None:
-        decision.waited, decision.from_board = late.waited, len(late.got)
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
 
 
-def _push_mog(
-    scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, post
-):
+def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
     """push-mog: Alg. 1's decision on its groups and the adjacent ones, then the pushes worth
     more than it (`_consider_pushes`)."""
     d = next_pick(
@@ -188,8 +167,6 @@ def _push_mog(
         grasp_unrecognised,
         adjacent=ADJACENT_GAP,
         exclude=exclude,
-        late=late,
-        post=post,
     )
     if (
         pushes_left > 0
@@ -197,11 +174,7 @@ def _push_mog(
         and not d.unrecognised
         and d.status in ("grasp", "no_grasp")
     ):
-        memory = failures
-        if failures is not None and late is not None:
-            d.merged |= bool(late.new())
-            memory = tuple(failures) + tuple(_unknown(late.got, failures))
-        _consider_pushes(scene, planner, spec, d, rng, avoid, memory)
+        _consider_pushes(scene, planner, spec, d, rng, avoid, failures)
     d.lone = lone_reason(scene, planner, spec, d, pushes_left)
     return d
 
@@ -218,23 +191,6 @@ def _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0) -
     if d.status != "grasp":
         d.status = "unrecognised"
     return d
-
-
-def _remembered(group, around, pending: list, failures, avoid, late, decision) -> PlanResult | None:
-    """The remembered verdict on ``group`` (``pending`` grows by what a late lookahead's board
-    shows by now), or None: plan it. While the lookahead is planning this very group, its
-    verdict is waited for, not planned twice."""
-    while True:
-        if late is not None and (got := late.new()):
-            pending += _unknown(got, failures, pending)
-            decision.merged = True
-        met, res = _recall(pending, group, around, avoid)
-        if met or late is None or (c := late.claimed()) is None or _same_group(*c, group, around) is None:
-            break
-        late.wait()
-    if res is not None:
-        decision.remembered += 1
-    return res
 
 
 def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float) -> list[tuple[int, ...]]:

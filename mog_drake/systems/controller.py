@@ -227,10 +227,6 @@ class ControllerSystem(LeafSystem):
                 # for this plan (see PlannerSystem).
                 "remembered": dec.remembered,
                 "lookahead": d.lookahead,
-                # Simulated time it waited for the verdicts of the lookahead (its board), and
-                # the verdicts it took.
-                "waited": dec.waited,
-                "from_board": dec.from_board,
                 **({"unrecognised": True} if dec.unrecognised else {}),
                 **({"lone": dec.lone} if dec.lone else {}),
             }
@@ -336,8 +332,6 @@ class ControllerSystem(LeafSystem):
                 "remembered": dec.remembered,
                 "remembered_pushes": dec.remembered_pushes,
                 "lookahead": d.lookahead,
-                "waited": dec.waited,
-                "from_board": dec.from_board,
             }
         )
 

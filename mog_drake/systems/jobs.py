@@ -31,7 +31,7 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 
-from mog_drake.planning.board import CPU, WALL, JobClock
+from mog_drake.config import CPU, WALL, JobClock
 
 
 class Job:
@@ -114,9 +114,8 @@ class Job:
         return self.future.result()[4]
 
     def waited(self) -> float:
-        """Simulated time the job spent waiting for another job's results or for its thread,
-        beyond its own clock (s; see `Worker.submit`'s ``waited`` and ``delay``); it must be
-        done."""
+        """Simulated time the job waited for its thread beyond its own clock (s; see
+        `Worker.submit`'s ``delay``); it must be done."""
         return self.future.result()[3]
 
     def latency(self) -> float:
@@ -135,15 +134,12 @@ class Worker:
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
 
-    def submit(self, fn, *args, t_request: float, counter: int, info=None, waited=None, delay=None) -> Job:
+    def submit(self, fn, *args, t_request: float, counter: int, info=None, delay=None) -> Job:
         """Runs ``fn(*args)`` on the worker's thread; its wall time counts from the request
-        (queueing included), its CPU time from its own start. ``waited(result)``: the
-        simulated time the job waited for another's results beyond its own clock (a plan that
-        waited for the lookahead's verdicts: `mog_drake.planning.board`), added to its
-        latency. ``delay()``, called on the thread as the job starts: the simulated time it
-        starts after its request because the thread was busy until then on the CPU clock (the
-        lookahead before it ran on: `mog_drake.planning.board.Board`'s ``after``), added to its
-        latency too (the wall clock counts queueing already)."""
+        (queueing included), its CPU time from its own start. ``delay()``, called on the
+        thread as the job starts: the simulated time it starts after its request because the
+        thread was busy until then on the CPU clock (the lookahead before it ran on), added
+        to its latency (the wall clock counts queueing already)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
@@ -158,7 +154,7 @@ class Worker:
             out = fn(*args)
             wall, c1 = time.perf_counter() - t_submit, cpu()
             spent = c1 - cpu0 if now is cpu else now() - t0
-            return out, wall, c1 - cpu0, late + (waited(out) if waited is not None else 0.0), spent
+            return out, wall, c1 - cpu0, late, spent
 
         return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
 

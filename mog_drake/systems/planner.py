@@ -12,7 +12,6 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from mog_drake.config import LatencyConfig
-from mog_drake.planning.board import Board, BoardReader
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
@@ -40,8 +39,8 @@ class Decision(_Immutable):
     # per object as of its image ((shape, x, y, count): see tally_misses).
     targets: tuple = ()
     misses: tuple = ()
-    # The lookahead's memory for this plan: "used" (visible at its image), "merged" (it came
-    # in while the plan ran: lookahead.merge), "dropped" (never in time), or "" (none ran).
+    # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
+    # time), or "" (none ran).
     lookahead: str = ""
 
 
@@ -53,7 +52,7 @@ class _Request:
     objects: int  # objects seen in its image
     scene: object  # the perceived scene
     misses: tuple  # failed grasps per object as of its image
-    lookahead: str  # as Decision.lookahead; "late" while its board is read
+    lookahead: str  # as Decision.lookahead
 
 
 class PlannerSystem(LeafSystem):
@@ -106,8 +105,8 @@ class PlannerSystem(LeafSystem):
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         # The lookahead for the next decision, until that decision takes (or drops) it.
         self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
-        # The last lookahead sent, kept after it was taken or dropped, its board in its info:
-        # one dropped may still run on its thread, and the next starts no earlier than it ends.
+        # The last lookahead sent, kept after it was taken or dropped: one dropped may still
+        # run on its thread, and the next starts no earlier than it ends.
         self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
@@ -138,8 +137,6 @@ class PlannerSystem(LeafSystem):
         d, rng = job.result()
         req: _Request = job.info
         used = req.lookahead
-        if used == "late":
-            used = "merged" if d.merged else "dropped"
         base = req.base
         recent = base.recent + ((tuple(float(v) for v in d.grasp),) if d.grasp is not None else ())
         if d.status == "grasp":
@@ -173,21 +170,25 @@ class PlannerSystem(LeafSystem):
             self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state)
 
     def _look_ahead(self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, state) -> None:
-        """Starts the lookahead (push-mog: with the pushes left after this decision). It writes
-        on a board as it goes, for the next plan if that starts first."""
-        board = Board(t, self._clock, after=self._thread_board(state))
+        """Starts the lookahead (push-mog: with the pushes left after this decision), on its
+        own thread, no earlier in simulated time than the one before it ended there."""
+        last = self._last_lookahead(state)
+        delay = None  # on the wall clock a job's time counts from its request, queueing included
+        if last is not None and not self._clock.from_request:
+            delay = lambda: max(0.0, last.t_visible(None) - t)  # noqa: E731
         ahead = self._ahead_worker.submit(
-            self._look,
+            lookahead,
             table,
             d,
+            self._ahead_planner,
+            self._spec,
             copy.deepcopy(rng),
             cur.recent,
+            True,
             self._spec.pushes.max_per_table - cur.pushes,
-            board,
             t_request=t,
             counter=counter,
-            info=board,
-            delay=board.start,
+            delay=delay,
         )
         state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
         state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
@@ -199,19 +200,14 @@ class PlannerSystem(LeafSystem):
         rng = copy.deepcopy(base.rng)  # the state's value is never changed in place
         memory = base.failures
         ahead = state.get_mutable_abstract_state(self._ahead).get_value().job
-        late, used = None, ""
+        used = ""
         if ahead is not None:
             # The lookahead's memory if it is visible by now, as any planning job's result is
             # after its latency (it planned the table this image shows, less the objects
-            # grasped since). If not, with measured latencies this plan reads its board: its
-            # verdicts as they become visible, and it waits for those of the groups it is
-            # planning (`mog_drake.planning.board`); else it is dropped, and its thread
-            # finishes it unused.
+            # grasped since); else it is dropped, and its thread finishes it unused.
             used = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, used = ahead.result(), "used"
-            elif ahead.counter == cur.counter and self._spec.lookahead.merge and self._latency is None:
-                late, used = ahead.info, "late"  # its board
             state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
@@ -224,18 +220,13 @@ class PlannerSystem(LeafSystem):
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.pushes.max_per_table - base.pushes,
             given_up,
-            late,
-            t,
             t_request=t,
             counter=p.counter,
             info=_Request(base, len(p.scene), p.scene, misses, used),
-            waited=lambda out: out[0].waited,
         )
         state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude, late, t):
-        # The late lookahead's board, read on this thread's clock from the request at t.
-        late = None if late is None else BoardReader(late, t, self._clock)
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
         d = next_pick(
             scene,
             self._planner,
@@ -246,25 +237,16 @@ class PlannerSystem(LeafSystem):
             grasp_unrecognised=grasp_unrecognised,
             pushes_left=pushes_left,
             exclude=exclude,
-            late=late,
         )
         return d, rng
 
-    def _look(self, scene, d, rng, avoid, pushes_left, board):
-        board.start()  # started already (its delay)
-        return lookahead(
-            scene, d, self._ahead_planner, self._spec, rng, avoid, pushes_left=pushes_left, board=board
-        )
-
-    def _thread_board(self, state) -> Board | None:
-        """The board of the last lookahead, if any (a lookahead that raised re-raises here,
-        in the Diagram's thread)."""
+    def _last_lookahead(self, state):
+        """The last lookahead sent, if any (one that raised re-raises here, in the Diagram's
+        thread)."""
         last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
-        if last is None:
-            return None
-        if last.future.done() and last.future.exception() is not None:
+        if last is not None and last.future.done() and last.future.exception() is not None:
             last.future.result()
-        return last.info
+        return last
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())

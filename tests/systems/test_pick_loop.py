@@ -10,8 +10,7 @@ import pytest
 from conftest import make_scene
 from pydrake.systems.analysis import Simulator
 
-from mog_drake.config import LatencyConfig
-from mog_drake.planning.board import CPU, WALL
+from mog_drake.config import CPU, WALL, LatencyConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenario import Scenario, SceneFile
 from mog_drake.systems.jobs import Worker
@@ -159,9 +158,8 @@ def _spin_then(seconds, got=None):
 @pytest.mark.parametrize("planning_s,expect", [(0.5, "used"), (6.0, "dropped")])
 def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path, planning_s, expect):
     """mog, three objects apart, fixed latencies. A lookahead of 0.5 s is visible when the
-    next image is planned ("used"); one of 6 s is not, and is dropped (with fixed latencies
-    there is no point within a plan at which to merge it). Either way the plan of the second
-    image is visible its own latency after its request."""
+    next image is planned ("used"); one of 6 s is not, and is dropped. Either way the plan of
+    the second image is visible its own latency after its request."""
     latency = LatencyConfig("fixed", perception_s=0.1, planning_s=planning_s)
     objects = [
         ("large_hexagon", 0.05, -0.10, 0.3),
@@ -181,7 +179,6 @@ def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path
         _close(parts)
     attempts = c.state(c.GetMyContextFromRoot(ctx)).attempts
     assert attempts[0]["lookahead"] == "" and attempts[1]["lookahead"] == expect
-    assert attempts[1]["waited"] == 0.0  # fixed latencies: no plan reads the lookahead's board
     second = decisions[max(decisions)]
     assert second.t_visible - second.t_request == pytest.approx(planning_s, abs=0.06)
 
@@ -375,35 +372,27 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.03 and p[2] < 0.01
 
 
-def test_the_lookaheads_verdicts_are_visible_at_its_cpu_time_and_a_wait_is_latency():
-    """The lookahead (requested at t = 0) posts a verdict after 0.3 s of its thread's CPU: it
-    is visible at 0.3. A plan requested at 0.1 sees it once its own CPU time brings it to 0.3:
-    not at its start, though it was posted long before on the wall clock, but after 0.2 s of
-    its own. A plan's wait for the lookahead is latency: visible at its request plus its CPU
-    time plus its wait."""
-    from mog_drake.planning.board import Board, BoardReader
-
+def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in_its_latency():
+    """On the CPU clock a job's time counts from its own start. A lookahead requested at 0.1,
+    queued on its thread behind one requested at 0 that spins 0.3 s, starts where that one
+    ended in simulated time (the delay the planner passes, `PlannerSystem._look_ahead`), and
+    that wait is latency: it is visible at its request plus the wait plus its own CPU time."""
     a = Worker("ahead", CPU)
-    board = Board(0.0, CPU)
-
-    def lookahead():
-        board.start()
-        _spin(0.3)
-        board.post("verdict")
-        board.finish()
-
     try:
-        a.submit(lookahead, t_request=0.0, counter=1).future.result()
-        late = BoardReader(board, 0.1, CPU)
-        assert late.new() == []
-        _spin(0.1)
-        assert late.new() == []
-        _spin(0.12)
-        assert late.new() == ["verdict"] and late.got == ["verdict"]
-        plan = a.submit(_spin_then, 0.2, "decision", t_request=1.0, counter=2, waited=lambda out: 0.5)
-        assert plan.result() == "decision" and plan.waited() == 0.5
-        assert plan.latency() == pytest.approx(plan.cpu_time() + 0.5)
-        assert not plan.visible(1.0 + plan.cpu_time() + 0.4, None, block=True)
-        assert plan.visible(1.0 + plan.cpu_time() + 0.5, None, block=True)
+        first = a.submit(_spin_then, 0.3, "first", t_request=0.0, counter=1)
+        second = a.submit(
+            _spin_then,
+            0.2,
+            "second",
+            t_request=0.1,
+            counter=2,
+            delay=lambda: max(0.0, first.t_visible(None) - 0.1),
+        )
+        assert second.result() == "second"
+        assert second.waited() == pytest.approx(first.cpu_time() - 0.1) and second.waited() > 0.19
+        assert second.latency() == pytest.approx(second.cpu_time() + second.waited())
+        end = 0.1 + second.latency()
+        assert not second.visible(end - 0.05, None, block=True)
+        assert second.visible(end + 1e-6, None, block=True)
     finally:
         a.shutdown()
