@@ -84,6 +84,8 @@ def picking_figure(summary: dict, path: str | Path, paper: dict | None = None) -
     """``paper``: {mode: {success_rate, picked_pct, pph}}, the paper's bars beside ours."""
     paper = paper or {}
     rows = summary["rows"]
+    beside = any(r["mode"] in paper for r in rows)  # no paper bars: ours alone, centred
+    shift, width = (0.2, 0.4) if beside else (0.0, 0.5)
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.5))
     for ax, key, label in zip(
         axes,
@@ -92,22 +94,24 @@ def picking_figure(summary: dict, path: str | Path, paper: dict | None = None) -
     ):
         x = np.arange(len(rows))
         ax.bar(
-            x - 0.2,
+            x - shift,
             [r[key] for r in rows],
-            0.4,
+            width,
             yerr=[np.nan_to_num(r[key + "_ci"]) for r in rows],
             capsize=3,
             label="ours (sim)",
         )
-        ax.bar(
-            x + 0.2,
-            [paper.get(r["mode"], {}).get(key, np.nan) for r in rows],
-            0.4,
-            color="0.6",
-            label="paper (real UR5)",
-        )
+        if beside:
+            ax.bar(
+                x + shift,
+                [paper.get(r["mode"], {}).get(key, np.nan) for r in rows],
+                width,
+                color="0.6",
+                label="paper (real UR5)",
+            )
         ax.set_xticks(x, [r["mode"] for r in rows])
+        ax.set_xlim(-0.8, len(rows) - 0.2)  # one mode's bar as wide as three modes' would be
         ax.set_title(label, fontsize=10)
         ax.grid(axis="y", alpha=0.3)
-    axes[0].legend(fontsize=8)
+    axes[0].legend(fontsize=8, loc="lower right")
     return _save(fig, path)

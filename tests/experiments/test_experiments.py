@@ -510,3 +510,22 @@ def test_push_mog_lone_grasps_are_counted_by_reason_only_where_recorded():
     assert lone_reasons([run]) == {"too far": 2, "blocked": 1, "not worth it": 0, "out of pushes": 0}
     old = _picking_record(1, "push-mog", 1.0, 800.0, [{}])  # a run from before: nothing recorded
     assert lone_reasons([old]) == {} and lone_reasons([_picking_record(0, "mog", 1.0, 800.0)]) == {}
+
+
+def test_the_picking_figure_draws_the_papers_bars_only_where_it_reports_the_mode(tmp_path, monkeypatch):
+    """Beside mog and sog, the paper's Table 1 bars; a push-mog sweep alone gets its own bars,
+    centred, and no legend entry for bars that are not there."""
+    from mog_drake.experiments import figures
+    from mog_drake.experiments.picking_eval import PAPER_TABLE1
+
+    saved = []
+    monkeypatch.setattr(figures, "_save", lambda fig, path: saved.append(fig) or path)
+    row = {k: 90.0 for k in ("success_rate", "picked_pct", "pph")} | {
+        k + "_ci": 1.0 for k in ("success_rate", "picked_pct", "pph")
+    }
+    for modes, bars, labels in ((("mog", "sog"), 4, 2), (("push-mog",), 1, 1)):
+        figures.picking_figure({"rows": [row | {"mode": m} for m in modes]}, tmp_path / "p.png", PAPER_TABLE1)
+        ax = saved[-1].axes[0]
+        assert len(ax.patches) == bars and len(ax.get_legend().get_texts()) == labels
+        centres = sorted(p.get_x() + p.get_width() / 2 for p in ax.patches)
+        assert (centres[0] == 0.0) == (len(modes) == 1)
