@@ -60,8 +60,7 @@ class Job:
 
     def elapsed(self) -> float:
         """Time the job has run so far on its clock (s): wall time since it was submitted, or
-        its thread's CPU time since it started, plus how late it started
-        (`Worker.submit`'s ``delay``)."""
+        its thread's CPU time since it started, plus how late it started (`Worker.submit`)."""
         if self.clock.from_request:
             return time.perf_counter() - self.t_submit
         if "now" not in self._started:
@@ -115,7 +114,7 @@ class Job:
 
     def waited(self) -> float:
         """Simulated time the job waited for its thread beyond its own clock (s; see
-        `Worker.submit`'s ``delay``); it must be done."""
+        `Worker.submit`); it must be done."""
         return self.future.result()[3]
 
     def latency(self) -> float:
@@ -133,30 +132,35 @@ class Worker:
     def __init__(self, name: str, clock: JobClock = WALL):
         self._name, self._clock = name, clock
         self._pool: ThreadPoolExecutor | None = None
+        self._last: Job | None = None  # the job submitted before, which runs first
 
-    def submit(self, fn, *args, t_request: float, counter: int, info=None, delay=None) -> Job:
+    def submit(self, fn, *args, t_request: float, counter: int, info=None) -> Job:
         """Runs ``fn(*args)`` on the worker's thread; its wall time counts from the request
-        (queueing included), its CPU time from its own start. ``delay()``, called on the
-        thread as the job starts: the simulated time it starts after its request because the
-        thread was busy until then on the CPU clock (the lookahead before it ran on), added
-        to its latency (the wall clock counts queueing already)."""
+        (queueing included), its CPU time from its own start. On a clock that counts from the
+        start (CPU), a job requested while the one before it still ran (a lookahead sent
+        while the last one, dropped, finishes) starts in simulated time where that one ended:
+        that wait is part of its latency (the wall clock counts queueing already)."""
         if self._pool is None:
             self._pool = ThreadPoolExecutor(1, thread_name_prefix=self._name)
         t_submit = time.perf_counter()
         started: dict = {}
+        before = self._last
 
         def run():
             cpu = CPU.reader()
             now = cpu if self._clock is CPU else self._clock.reader()  # one reading on CPU
             cpu0, t0 = cpu(), now()
-            late = delay() if delay is not None else 0.0
+            late = 0.0  # ``before`` is done: this thread ran it
+            if before is not None and not self._clock.from_request and before.future.exception() is None:
+                late = max(0.0, before.t_visible(None) - t_request)
             started.update(now=now, t0=t0, delay=late)
             out = fn(*args)
             wall, c1 = time.perf_counter() - t_submit, cpu()
             spent = c1 - cpu0 if now is cpu else now() - t0
             return out, wall, c1 - cpu0, late, spent
 
-        return Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
+        self._last = Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
+        return self._last
 
     def shutdown(self) -> None:
         """Lets a running job finish, then ends the thread (a job cannot be interrupted)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,7 +89,6 @@ class PlannerSystem(LeafSystem):
         self._spec.check()
         latency = latency or LatencyConfig()
         self._latency = latency.of("planning")
-        self._clock = latency.clock
         self._block = block
         self._worker = Worker("planner", latency.clock)
         self._ahead_worker = Worker("lookahead", latency.clock)
@@ -105,8 +105,8 @@ class PlannerSystem(LeafSystem):
         self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         # The lookahead for the next decision, until that decision takes (or drops) it.
         self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
-        # The last lookahead sent, kept after it was taken or dropped: one dropped may still
-        # run on its thread, and the next starts no earlier than it ends.
+        # The last lookahead sent, kept after it was taken or dropped: if it raised, the next
+        # one's start re-raises it.
         self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
@@ -171,24 +171,18 @@ class PlannerSystem(LeafSystem):
 
     def _look_ahead(self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, state) -> None:
         """Starts the lookahead (push-mog: with the pushes left after this decision), on its
-        own thread, no earlier in simulated time than the one before it ended there."""
-        last = self._last_lookahead(state)
-        delay = None  # on the wall clock a job's time counts from its request, queueing included
-        if last is not None and not self._clock.from_request:
-            delay = lambda: max(0.0, last.t_visible(None) - t)  # noqa: E731
+        own thread (a `Worker`: no earlier in simulated time than the one before it ended)."""
+        self._raise_lookahead_fault(state)
         ahead = self._ahead_worker.submit(
-            lookahead,
+            functools.partial(lookahead, pushes_left=self._spec.pushes.max_per_table - cur.pushes),
             table,
             d,
             self._ahead_planner,
             self._spec,
             copy.deepcopy(rng),
             cur.recent,
-            True,
-            self._spec.pushes.max_per_table - cur.pushes,
             t_request=t,
             counter=counter,
-            delay=delay,
         )
         state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
         state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
@@ -240,13 +234,12 @@ class PlannerSystem(LeafSystem):
         )
         return d, rng
 
-    def _last_lookahead(self, state):
-        """The last lookahead sent, if any (one that raised re-raises here, in the Diagram's
-        thread)."""
+    def _raise_lookahead_fault(self, state) -> None:
+        """A last lookahead that raised (taken, dropped or still running) re-raises here, in
+        the Diagram's thread."""
         last = state.get_mutable_abstract_state(self._last_ahead).get_value().job
         if last is not None and last.future.done() and last.future.exception() is not None:
             last.future.result()
-        return last
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())

@@ -375,19 +375,12 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
 def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in_its_latency():
     """On the CPU clock a job's time counts from its own start. A lookahead requested at 0.1,
     queued on its thread behind one requested at 0 that spins 0.3 s, starts where that one
-    ended in simulated time (the delay the planner passes, `PlannerSystem._look_ahead`), and
-    that wait is latency: it is visible at its request plus the wait plus its own CPU time."""
+    ended in simulated time, and that wait is latency: it is visible at its request plus the
+    wait plus its own CPU time. On the wall clock the queueing is in its time already."""
     a = Worker("ahead", CPU)
     try:
         first = a.submit(_spin_then, 0.3, "first", t_request=0.0, counter=1)
-        second = a.submit(
-            _spin_then,
-            0.2,
-            "second",
-            t_request=0.1,
-            counter=2,
-            delay=lambda: max(0.0, first.t_visible(None) - 0.1),
-        )
+        second = a.submit(_spin_then, 0.2, "second", t_request=0.1, counter=2)
         assert second.result() == "second"
         assert second.waited() == pytest.approx(first.cpu_time() - 0.1) and second.waited() > 0.19
         assert second.latency() == pytest.approx(second.cpu_time() + second.waited())
@@ -396,3 +389,9 @@ def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in
         assert second.visible(end + 1e-6, None, block=True)
     finally:
         a.shutdown()
+    w = Worker("ahead", WALL)
+    try:
+        w.submit(_spin_then, 0.3, "first", t_request=0.0, counter=1)
+        assert w.submit(_spin_then, 0.01, "second", t_request=0.1, counter=2).waited() == 0.0
+    finally:
+        w.shutdown()
