@@ -75,9 +75,10 @@ def picking_grasp() -> GraspConfig:
     whole, and most of a dense table's planning went into them (push-mog on the realistic
     cell, tables 0-5: groups of three found a grasp in 7 of 198 plans, 6 within 2 checks,
     for 86 of the 183 s of planning CPU; groups of four in none of 158), while pairs found 9
-    of their 23 grasps at checks 2-4. A lone object is not grasped where a turn under 12 degrees lets the squeeze carry
-    it on to another final diameter: a thin bar held end to end (8 deg) can be twisted out of
-    the jaws by the swing to the bin; every other library shape has 14 deg or more."""
+    of their 23 grasps at checks 2-4. A lone object is not grasped where a turn under 12
+    degrees lets the squeeze carry it on to another final diameter: a thin bar held end to
+    end (8 deg) can be twisted out of the jaws by the swing to the bin; every other library
+    shape has 14 deg or more."""
     return GraspConfig(
         method="gp",
         max_physics=4,

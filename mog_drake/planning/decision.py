@@ -99,15 +99,15 @@ def _same_group(f_group, f_around, group, around) -> dict[int, int] | None:
     return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
 
 
-def _recall(pending: list, group, around, avoid) -> tuple[bool, PlanResult | None]:
-    """The first remembered verdict in ``pending`` of ``group`` with ``around`` (taken out of
-    ``pending``): (True, its replay), or (True, None) when its grasp repeats one to avoid;
-    (False, None) if none is remembered."""
+def _recall(pending: list, group, around, avoid) -> PlanResult | None:
+    """The replay of the first remembered verdict in ``pending`` of ``group`` with ``around``
+    (taken out of ``pending``); None if none is remembered, or its grasp repeats one to
+    avoid: plan the group."""
     for k, f in enumerate(pending):
         if isinstance(f, FailedGroup) and (ids := _same_group(f.group, f.around, group, around)) is not None:
             del pending[k]
-            return True, _replay(f, ids, group, avoid)
-    return False, None
+            return _replay(f, ids, group, avoid)
+    return None
 
 
 def _replay(f: FailedGroup, ids: dict[int, int], group: tuple[int, ...], avoid=()) -> PlanResult | None:

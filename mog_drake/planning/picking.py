@@ -127,7 +127,7 @@ def next_pick(
         res = around = None
         if failures is not None:
             around = _around(scene, group, planner.gripper)
-            _, res = _recall(pending, group, around, avoid)
+            res = _recall(pending, group, around, avoid)
             decision.remembered += res is not None
         if res is None:
             res = planner.plan(scene, group, rng=rng, avoid=avoid)

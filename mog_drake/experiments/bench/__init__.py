@@ -68,23 +68,20 @@ def run(
             cell, before
         )
     elif what == "replanning":
-        from mog_drake.experiments.bench.station import bench_replanning
+        from mog_drake.experiments.bench.station import FREE_PLANNING_S, bench_replanning
 
         bar = Progress(2 * scenes, "replanning", enabled=progress)
         rows = bench_replanning(scenes, seed, bar, scenario, mode)
+        past = f"cpu_past_{FREE_PLANNING_S:g}s"
         sums = {}
         for r in rows:
-            s = sums.setdefault(r["large groups"], [0.0, 0.0, 0.0, 0])
-            past = next(v for k, v in r.items() if k.startswith("cpu_past"))
-            s[0], s[1], s[2], s[3] = (
-                s[0] + r["cpu_s"],
-                s[1] + r["first_s"],
-                s[2] + past,
-                s[3] + r["decisions"],
-            )
+            s = sums.setdefault(r["large groups"], dict.fromkeys(("cpu_s", "first_s", past, "decisions"), 0))
+            for k in s:
+                s[k] += r[k]
         return {what: rows}, format_table(rows) + "\nall tables, groups of three or more with: " + "; ".join(
-            f"{k} {c:.1f} s of planning CPU ({f:.1f} in first decisions, {p:.1f} past the free time), {n} decisions"
-            for k, (c, f, p, n) in sums.items()
+            f"{k} {s['cpu_s']:.1f} s of planning CPU ({s['first_s']:.1f} in first decisions, "
+            f"{s[past]:.1f} past the free time), {s['decisions']} decisions"
+            for k, s in sums.items()
         )
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
