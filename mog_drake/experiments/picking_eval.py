@@ -252,7 +252,9 @@ WAIT_KINDS = {  # a decision's ``lookahead``: "merged" in sweeps made while the 
 def wait_by_decision(runs: list[dict]) -> dict:
     """Where the arm waited for compute: the idle time before each attempt or push (from the
     end of the one before, or the run's start), by what the decision it waited for had from
-    the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time."""
+    the lookahead (its ``lookahead``; a table's first is "first"), in s, plus the robot time.
+    A grasp that follows its push at once (``after_push``) waited for nothing: its gap is the
+    jaws opening, which the controller counts as robot time."""
     out = {k: 0.0 for k in WAIT_KINDS} | {"robot_time_s": 0.0}
     for r in runs:
         events = sorted(
@@ -260,7 +262,7 @@ def wait_by_decision(runs: list[dict]) -> dict:
         )
         end = 0.0
         for k, e in enumerate(events):
-            wait = max(0.0, e["start"] - end)
+            wait = 0.0 if e.get("after_push") else max(0.0, e["start"] - end)
             kind = "first" if k == 0 else e.get("lookahead", "")
             out[kind if kind in out else ""] += wait
             end = e["end"]

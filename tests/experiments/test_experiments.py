@@ -440,7 +440,8 @@ def test_the_arms_wait_is_summarised_as_its_median_share_of_robot_time():
 
 def test_the_arms_wait_is_split_by_what_the_decision_had_from_the_lookahead():
     """Each idle gap before an attempt or a push (from the end of the one before) goes to its
-    decision's kind: the table's first, then by its lookahead."""
+    decision's kind: the table's first, then by its lookahead. The grasp a push set up waits
+    for nothing: its gap is the jaws opening (robot time)."""
     run = {
         "mode": "mog",
         "summary": {"robot_time_s": 20.0},
@@ -448,6 +449,7 @@ def test_the_arms_wait_is_split_by_what_the_decision_had_from_the_lookahead():
             {"start": 2.0, "end": 8.0, "lookahead": ""},
             {"start": 9.0, "end": 15.0, "lookahead": "used"},
             {"start": 18.0, "end": 24.0, "lookahead": "merged"},
+            {"start": 24.4, "end": 30.0, "after_push": True},
         ],
         "pushes": [{"start": 15.5, "end": 17.0, "lookahead": "dropped"}],
     }
