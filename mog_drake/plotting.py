@@ -10,9 +10,9 @@ import shapely
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Polygon as MplPolygon
 
+from mog_drake.files import atomic_path
 from mog_drake.geometry.conditions import GraspEvaluation
 from mog_drake.geometry.gripper import GripperGeometry
-from mog_drake.outputs import atomic_path
 
 VERDICT_COLORS = {"collision": "#9e9e9e", "diameter": "#e67e22", "area": "#c0392b", "passed": "#27ae60"}
 

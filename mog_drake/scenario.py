@@ -27,15 +27,19 @@ from pydrake.visualization import VisualizationConfig
 from mog_drake.camera import default_camera
 from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
 from mog_drake.errors import MogError
+from mog_drake.files import read_text
 from mog_drake.hardware.config import HardwareSpec, ReplaySource
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.scenes.library import check_yaml, read_text
+from mog_drake.scenes.library import check_yaml
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.sim.realism import RealismConfig
 from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
 
 SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
+# A scenario sets a few hundred values (models/scenario.yaml, every setting: about 250); many
+# more is a mistake that the typed loader would take seconds per 100 kB to refuse.
+MAX_SCENARIO_VALUES = 5000
 # m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their
 # outer faces) and the bin's outer walls: room for the real fingers' links around the pads
 # and for where a grasp lands (perception's pose error is about 1 mm, the arm's a few).
@@ -218,7 +222,9 @@ def with_overrides(sc: Scenario, where: str = "", **given) -> Scenario:
 
 def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
     """A scenario from YAML text (a file's contents), checked like ``load_scenario``."""
-    check_yaml(text, where)
+    check_yaml(text, where, max_values=MAX_SCENARIO_VALUES)
+    if _empty(text):  # no keys (or comments only): every setting keeps its default
+        return Scenario()
     try:
         sc = yaml_load_typed(schema=Scenario, data=text, defaults=Scenario())
     except Exception as e:  # Drake's loader raises RuntimeError, TypeError, ValueError, yaml's own
@@ -232,6 +238,18 @@ def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
     except MogError as e:
         raise MogError(f"{where}: {e}") from None
     return sc
+
+
+def _empty(text: str) -> bool:
+    """Whether YAML ``text`` holds no document, or only a null one."""
+    import yaml
+
+    try:
+        return all(
+            doc is None for doc in yaml.load_all(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        )
+    except yaml.YAMLError:
+        return False  # the typed loader names what is wrong
 
 
 def _failing_key(text: str) -> str:
@@ -298,7 +316,8 @@ def _in(sc_value, key: str, lo: float, hi: float, lo_open: bool = True) -> None:
 
 def _box(values, key: str, n: int) -> None:
     if len(values) != n or any(values[i] >= values[i + 1] for i in range(0, n, 2)):
-        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {list(values)}")
+        got = list(values) if len(values) <= 2 * n else f"{len(values):,} numbers"
+        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {got}")
 
 
 def _check_sources(sc: Scenario) -> None:
@@ -382,6 +401,8 @@ def check_scenario(sc: Scenario) -> None:
     for key in ("perception_s", "planning_s"):
         _in(getattr(sc.latency, key), f"latency.{key}", 0, 600, lo_open=False)
     hw = sc.hardware
+    if not 1 <= hw.gripper_port <= 65535:
+        raise MogError(f"hardware.gripper_port must be a TCP port (1-65535), got {hw.gripper_port}")
     _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
     _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)
     _in(hw.burst_window, "hardware.burst_window (s)", 0, 1.0)

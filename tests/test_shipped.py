@@ -89,7 +89,7 @@ def _variants(command: str) -> list[list[str]]:
     and put in (its first alternative), each ``a | b`` alternative on its own."""
     import re
 
-    command = command.replace("--grasp X Y THETA", "--grasp 0 0 0")
+    command = command.replace("--grasp X_MM Y_MM THETA_DEG", "--grasp 0 0 0")
     bare = re.sub(r"\s*\[[^\]]*\]", "", command)
     full = re.sub(r"\[([^\]|]*)(\|[^\]]*)?\]", r"\1", command)
     out = []

@@ -12,7 +12,7 @@ import sys
 
 from mog_drake.cli import experiments, geometry, robot
 from mog_drake.cli.common import Parser, UsageError, check_args
-from mog_drake.errors import MogError, Terminated, stop_on_signals
+from mog_drake.errors import MogError, Terminated, ignore_stop_signals, stop_on_signals
 
 
 def build_parser() -> Parser:
@@ -52,6 +52,11 @@ def main(argv: list[str] | None = None) -> int:
     except MogError as e:  # HardwareFault included: exit 3
         print(f"mog-drake: error: {' '.join(str(e).split())}", file=sys.stderr)
         return e.exit_code
+    except BrokenPipeError:  # the reader went away (`mog-drake shapes | head`): as any Unix tool
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing more to flush there
+        return 141  # 128 + SIGPIPE, what a shell reports for `yes | head`
     except OSError as e:  # a path that cannot be written or read (permissions, a full disk)
         where = f": {e.filename}" if getattr(e, "filename", None) else ""
         print(f"mog-drake: error: {e.strerror or e}{where}", file=sys.stderr)
@@ -60,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         print("mog-drake: interrupted", file=sys.stderr)
         return 130
     except Terminated as e:
+        ignore_stop_signals()  # a second signal must not kill the process before it exits
         print(f"mog-drake: terminated by {e}", file=sys.stderr)
         return e.exit_code
 

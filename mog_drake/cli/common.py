@@ -10,7 +10,8 @@ import re
 from pathlib import Path
 
 from mog_drake.errors import MogError
-from mog_drake.outputs import check_writable, plain
+from mog_drake.files import check_writable, plain
+from mog_drake.planning.config import MAX_ORIENTATIONS, MAX_POSITIONS
 
 
 class UsageError(Exception):
@@ -54,12 +55,26 @@ def emit(args, doc: dict, text: str) -> None:
     print(json.dumps(plain(doc), indent=2, allow_nan=False) if getattr(args, "json", False) else text)
 
 
-def grasp_arg(values):
+GRASP_HELP = "a grasp in the table frame: its centre in mm and the closing axis in degrees, as `candidates` prints them"
+
+
+def grasp_arg(values, scene=None):
+    """``--grasp X_MM Y_MM THETA_DEG`` (what `candidates` prints) as (x, y, theta) in m and
+    rad. With ``scene``: refused unless its centre lies on the scene's table."""
     import numpy as np
 
     g = np.array(values, dtype=float)
     if not np.all(np.isfinite(g)):
-        raise MogError(f"--grasp must be three finite numbers X Y THETA, got {values}")
+        raise MogError(f"--grasp must be three finite numbers X_MM Y_MM THETA_DEG, got {values}")
+    g = np.array([g[0] / 1e3, g[1] / 1e3, math.radians(g[2])])
+    if scene is not None:
+        x0, x1, y0, y1 = scene.table
+        if not (x0 <= g[0] <= x1 and y0 <= g[1] <= y1):
+            raise MogError(
+                f"--grasp centre ({values[0]:g}, {values[1]:g}) mm is off the scene's table "
+                f"(x {x0 * 1e3:g} to {x1 * 1e3:g} mm, y {y0 * 1e3:g} to {y1 * 1e3:g} mm): "
+                "--grasp takes mm and degrees, as `candidates` prints them"
+            )
     return g
 
 
@@ -76,7 +91,7 @@ AT_LEAST_1 = (
     "positions orientations limit scenes objects clusters top candidates scenes_per_class jobs max_physics"
 )
 POSITIVE = ("time_limit", "timeout", "move_timeout", "window", "force")
-MOST = {"positions": 10_000, "orientations": 360}
+MOST = {"positions": MAX_POSITIONS, "orientations": MAX_ORIENTATIONS}
 SUFFIXES = {"output": (".png", ".svg", ".pdf", ".jpg", ".jpeg"), "record": (".html",)}
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mog_drake.cli.common import add_common, emit, grasp_arg, library, load_scene, meshcat_of
-from mog_drake.outputs import write_atomic
+from mog_drake.cli.common import GRASP_HELP, add_common, emit, grasp_arg, library, load_scene, meshcat_of
+from mog_drake.files import write_atomic
 
 
 def add_parsers(sub) -> None:
@@ -38,14 +38,18 @@ def add_parsers(sub) -> None:
     sp.add_argument("-o", "--output", required=True, help="PNG to write")
     sp.add_argument("--group", type=int, nargs="+")
     sp.add_argument("--candidates", action="store_true", help="overlay candidates coloured by verdict")
-    sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), help="draw this grasp")
+    sp.add_argument(
+        "--grasp", type=float, nargs=3, metavar=("X_MM", "Y_MM", "THETA_DEG"), help=f"draw {GRASP_HELP}"
+    )
     sp.add_argument("--top", type=int, default=3, help="S regions of the top N passing candidates")
     add_grid(sp)
     sp.set_defaults(func=cmd_scene_show)
 
     sp = sub.add_parser("check", help="the two necessary conditions for one grasp")
     add_common(sp)
-    sp.add_argument("--grasp", type=float, nargs=3, metavar=("X", "Y", "THETA"), required=True)
+    sp.add_argument(
+        "--grasp", type=float, nargs=3, metavar=("X_MM", "Y_MM", "THETA_DEG"), required=True, help=GRASP_HELP
+    )
     sp.add_argument("--group", type=int, nargs="+")
     sp.add_argument(
         "--simulate", action="store_true", help="also run the physics verifier (close, lift, hold)"
@@ -114,7 +118,7 @@ def cmd_scene_show(args) -> None:
     scene = load_scene(args)
     group, _ = scene.chosen_group(args.group)
     grid = (args.candidates, args.positions, args.orientations)
-    grasp = grasp_arg(args.grasp) if args.grasp else None
+    grasp = grasp_arg(args.grasp, scene) if args.grasp else None
     scene_picture(
         scene,
         group,
@@ -133,7 +137,7 @@ def cmd_check(args) -> None:
 
     scene = load_scene(args)
     group, source = scene.chosen_group(args.group)
-    grasp = grasp_arg(args.grasp)
+    grasp = grasp_arg(args.grasp, scene)
     doc, lines = check_report(scene, group, source, grasp, GripperGeometry())
     doc = {"scene": args.scene, **doc}
     if args.simulate or args.meshcat or args.record:

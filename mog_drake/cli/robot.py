@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from mog_drake.cli.common import emit, meshcat_of
-from mog_drake.outputs import write_atomic
+from mog_drake.files import write_atomic
 from mog_drake.planning.config import MODES
 
 

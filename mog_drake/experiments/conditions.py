@@ -7,6 +7,7 @@ negative: a true negative if physics fails too, a false negative if physics lift
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -165,7 +166,8 @@ def summarize(results: list[dict]) -> dict:
                             "n_positions": r.get("n_positions", 70),
                             "n_orientations": r.get("n_orientations", 7),
                             "replay": f"mog-drake scene generate --kind row --class {c} --seed {r['scene_seed']} "
-                            f"-o fn.yaml && mog-drake check fn.yaml --grasp {x} {y} {th} --simulate --meshcat",
+                            f"-o fn.yaml && mog-drake check fn.yaml --grasp {x * 1e3:.4f} {y * 1e3:.4f} "
+                            f"{math.degrees(th):.4f} --simulate --meshcat",
                         }
                     )
         totals += k

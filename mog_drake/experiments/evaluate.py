@@ -53,10 +53,11 @@ def evaluate(
 
             scenario = ""
             if o["scenario"]:
+                from mog_drake.files import read_text
                 from mog_drake.scenario import load_scenario
 
                 load_scenario(o["scenario"])  # refuses a bad file before anything runs
-                scenario = Path(o["scenario"]).read_text()
+                scenario = read_text(o["scenario"], "scenario file")
             modes = parse_names(o["modes"], MODES, "--modes")
             summary, results = picking_eval.run(
                 o["scenes"], modes, o["seed"], out, o["objects"], o["time_limit"],

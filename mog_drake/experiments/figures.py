@@ -7,7 +7,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from mog_drake.outputs import atomic_path
+from mog_drake.files import atomic_path
 
 # The paper's figures (REFERENCE Sec. 3), drawn beside ours.
 PAPER_TN_BY_CLASS = {"2": 96.0, "3": 85.5, "4": 96.3, "5": 93.3, "6": 93.9, "7": 95.2}

@@ -78,7 +78,7 @@ def check_comparable(compare_dir, params: dict) -> None:
     from mog_drake.errors import MogError
 
     where = Path(compare_dir) / "sweep.json"
-    if not where.is_file():
+    if not where.exists():
         raise MogError(f"--compare: {where} does not exist (give a picking sweep's --out folder)")
     try:
         other = read_params(compare_dir)
@@ -86,6 +86,9 @@ def check_comparable(compare_dir, params: dict) -> None:
         raise MogError(f"--compare: {e}") from None
     if other.get("experiment") != "picking":
         raise MogError(f"--compare: {where} is not a picking sweep")
+    results = Path(compare_dir) / "results.jsonl"
+    if results.exists() and not results.is_file():  # read once this sweep has run: refused now
+        raise MogError(f"--compare: {results}: not a regular file, not a sweep's results (JSON lines)")
     a, b = tables_of(other), tables_of(params)
     for key in a:
         if a[key] != b[key]:

@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from mog_drake.errors import MogError
+from mog_drake.files import MAX_TEXT_BYTES, read_bytes
 from mog_drake.progress import Progress
 
 
@@ -39,7 +40,7 @@ def load_results(
     path = Path(path)
     if not path.exists():
         return {}
-    data = path.read_bytes()
+    data = read_bytes(path, "sweep's results (JSON lines)")
     torn = bool(data) and not data.endswith(b"\n")
     if torn:
         data = data[: data.rfind(b"\n") + 1]
@@ -82,7 +83,7 @@ def check_params(out_dir: Path, params: dict, growable: Iterable[str] = ("scenes
         return
     with folder_lock(out_dir):
         _check_params(out_dir, params, growable)
-        from mog_drake.outputs import write_atomic
+        from mog_drake.files import write_atomic
 
         write_atomic(out_dir / "sweep.json", json.dumps(params, indent=2))
 
@@ -94,7 +95,7 @@ def read_params(out_dir: Path) -> dict | None:
     if not path.exists():
         return None
     try:
-        old = json.loads(path.read_bytes())
+        old = json.loads(read_bytes(path, "sweep's parameters (JSON)", MAX_TEXT_BYTES))
     except (ValueError, UnicodeDecodeError):
         old = None
     if not isinstance(old, dict):
@@ -142,6 +143,10 @@ def folder_lock(out_dir: Path):
     import fcntl
 
     out_dir.mkdir(parents=True, exist_ok=True)
+    for name in (".lock", "failures.jsonl"):  # appended to: a FIFO there would block the sweep
+        p = out_dir / name
+        if p.exists() and not p.is_file():
+            raise MogError(f"{p}: not a regular file, not a sweep's {name}: move it away")
     f = open(out_dir / ".lock", "a+")  # noqa: SIM115
     try:
         try:
@@ -227,13 +232,18 @@ def _guarded(worker: Callable[[dict], dict], task: dict) -> dict:
     """``worker(task)``, or a failure record if it raised (in the worker's own process, so the
     traceback survives pickling). A worker told to stop (the pool's SIGTERM when the sweep is
     stopped) exits quietly, its task left to run again."""
-    from mog_drake.errors import Terminated
+    import multiprocessing
+
+    from mog_drake.errors import Terminated, terminating
 
     try:
         return worker(task)
     except Terminated as e:
+        if multiprocessing.parent_process() is None:
+            raise  # the sweep's own process (--jobs 1): the CLI reports it and exits 143
         raise SystemExit(e.exit_code) from None
     except Exception as e:
+        terminating()  # whatever a stop signal left behind is no result
         return {
             "key": task["key"],
             _FAILED: f"{type(e).__name__}: {e}".splitlines()[0],

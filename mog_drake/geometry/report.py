@@ -19,7 +19,7 @@ def record_lines(rec: dict) -> list[str]:
     """A candidate's `GraspEvaluation.record` as lines of text (mm, mm^2, deg)."""
     g = rec["grasp"]
     lines = [
-        f"grasp      x={g[0]:.4f} m  y={g[1]:.4f} m  theta={math.degrees(g[2]):.1f} deg",
+        f"grasp      x={g[0] * 1e3:.2f} mm  y={g[1] * 1e3:.2f} mm  theta={math.degrees(g[2]):.2f} deg",
         f"h0         {rec['h0'] * 1e3:.2f} mm   (b_l {_mm(rec['b_l'])}, b_r {_mm(rec['b_r'])})",
         f"h_fmin     {rec['h_fmin'] * 1e3:.2f} mm",
         "areas      " + ", ".join(f"A_{k}={v * 1e6:.1f} mm^2" for k, v in rec["areas"].items()),

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import io
 import warnings
 from pathlib import Path
 
@@ -13,6 +14,11 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.errors import HardwareFault, MogError
+from mog_drake.files import read_bytes
+
+# A recorded frame is about 2 MB (640 x 480 RGB and float32 depth, compressed or not); a
+# camera of 8192 x 8192 pixels (the scenario's most) about 470 MB.
+FRAME_BYTES = 512 * 2**20
 
 
 def _rgba(rgb: np.ndarray) -> ImageRgba8U:
@@ -54,8 +60,9 @@ class ReplayCamera(LeafSystem):
         self._frames = []
         found = set()
         for f in files:
+            data = read_bytes(f, "recorded frame (frame_*.npz)", FRAME_BYTES)
             try:
-                d = np.load(f)
+                d = np.load(io.BytesIO(data))
                 if "rgb" not in d or "depth" not in d:
                     raise MogError(f"{f}: a frame needs arrays 'rgb' and 'depth'")
                 rgb, depth = np.asarray(d["rgb"]), np.asarray(d["depth"], np.float32)

@@ -30,7 +30,8 @@ class UR5Driver(LeafSystem):
       not by exception: isConnected() of both interfaces, emergency and protective stop, the
       safety mode, the robot mode, and whether the receive timestamp still advances (a lost
       link leaves getActualQ returning its last cached values);
-    * servoJ's return value: False is a refusal by the controller, and a fault;
+    * servoJ's return value: False is a refusal by the controller, and a fault, reported with
+      the cause the controller's state gives (a stop, the safety mode, the link);
     * on a fault the arm is stopped (servoStop) and the Diagram halts with a one-line reason.
 
     Targets are streamed every period, changed or not (a servo stream is continuous), with
@@ -148,7 +149,13 @@ class UR5Driver(LeafSystem):
                 ok = self._control.servoJ(q.tolist(), 0.5, 0.5, servo_time, *self._servo)
             except Exception as e:
                 return self._fail(f"connection lost ({type(e).__name__}: {e})")
-            if not ok:
-                return self._fail("servoJ returned False: the controller did not take the target")
+            if not ok:  # the controller's own reason, if it reports one (a stop, the link)
+                cause = robot_health(self._control, self._receive)
+                return self._fail(
+                    f"{cause} (servoJ refused the target)"
+                    if cause
+                    else "servoJ returned False: the controller did not take the target "
+                    "(is the control script running?)"
+                )
         self._last.update(q=q, t=now)
         return EventStatus.Succeeded()

@@ -17,6 +17,10 @@ MODES = ("mog", "sog", "push-mog")
 LARGE_GROUP = 3  # objects: GraspConfig.max_physics_large caps the checks of groups this large
 METHODS = ("gp", "rand-phys", "rank-phys", "rand-fil-phys", "single")  # GraspPlanner's
 DIAMETER_CONDITIONS = ("paper", "columns")
+# The candidate grid's most: Np x Ntheta candidates per group are evaluated at once, and past
+# these the arrays outgrow memory (the paper's grid is 70 x 7).
+MAX_POSITIONS, MAX_ORIENTATIONS = 10_000, 360
+MAX_SEED = 2**63 - 1
 
 
 @dataclass
@@ -58,8 +62,11 @@ class GraspConfig:
             raise MogError(
                 f"diameter_condition must be one of {', '.join(DIAMETER_CONDITIONS)}, got {self.diameter_condition!r}"
             )
-        if self.n_positions < 1 or self.n_orientations < 1:
-            raise MogError("n_positions and n_orientations must be at least 1")
+        if not (1 <= self.n_positions <= MAX_POSITIONS and 1 <= self.n_orientations <= MAX_ORIENTATIONS):
+            raise MogError(
+                f"n_positions must be in [1, {MAX_POSITIONS:,}] and n_orientations in [1, {MAX_ORIENTATIONS}] "
+                f"(the grid's memory and time), got {self.n_positions:,} and {self.n_orientations:,}"
+            )
         for key in ("max_physics", "max_physics_large"):
             if getattr(self, key) is not None and getattr(self, key) < 1:
                 raise MogError(f"{key} must be at least 1 or null (no cap), got {getattr(self, key)}")
@@ -198,6 +205,8 @@ class RobustConfig:
         for key in ("friction_spread", "mass_spread"):
             if not 0 <= getattr(self, key) < 1:
                 raise MogError(f"planner.robust.{key} must be in [0, 1), got {getattr(self, key)}")
+        if not 0 <= self.seed <= MAX_SEED:
+            raise MogError(f"planner.robust.seed must be a whole number >= 0, got {self.seed}")
 
 
 @dataclass
@@ -216,6 +225,8 @@ class PlannerSpec:
         """Refuses a setting that would only fail once the robot is running."""
         if self.mode not in MODES:
             raise MogError(f"planner.mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        if not 0 <= self.seed <= MAX_SEED:
+            raise MogError(f"planner.seed must be a whole number >= 0, got {self.seed}")
         if self.grasp.method == "single":  # picking chooses its objects itself
             methods = ", ".join(m for m in METHODS if m != "single")
             raise MogError(f"planner.grasp.method must be one of {methods}, got 'single'")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import numpy as np
 import yaml
 
 from mog_drake.errors import MogError
+from mog_drake.files import read_text
 from mog_drake.geometry.polygon import (
     edge_directions,
     final_diameters,
@@ -21,7 +21,6 @@ from mog_drake.geometry.polygon import (
 
 MODELS_DIR = Path(os.environ.get("MOG_DRAKE_MODELS", Path(__file__).resolve().parents[2] / "models"))
 DEFAULT_SHAPES_FILE = MODELS_DIR / "shapes.yaml"
-MAX_FILE_BYTES = 16 * 2**20  # a scene, shapes or scenario file is a few kB
 #: A shape is a tabletop object: its vertices within this distance of its origin, its height
 #: at most this (m). Larger numbers are typos, and break the physics.
 MAX_SHAPE_SIZE = 0.5
@@ -149,42 +148,26 @@ def _positive(v, what: str, upper: float = math.inf) -> float:
     return f
 
 
-def read_text(path: str | Path, what: str = "file") -> str:
-    """A text file's contents, or one `MogError` line saying why not: missing, a directory,
-    unreadable, too large or not text."""
-    path = Path(path)
-    if not path.exists():
-        raise MogError(f"{what} not found: {path}")
-    if path.is_dir():
-        raise MogError(f"{path}: is a directory, not a {what}")
-    try:
-        if not stat.S_ISREG(path.stat().st_mode):  # a FIFO blocks, /dev/zero never ends
-            raise MogError(f"{path}: not a regular file, not a {what}")
-        with open(path, "rb") as f:
-            data = f.read(MAX_FILE_BYTES + 1)  # bounded, whatever the file says its size is
-        if len(data) > MAX_FILE_BYTES:
-            raise MogError(f"{path}: over {MAX_FILE_BYTES // 2**20} MiB, not a {what}")
-        return data.decode("utf-8")
-    except PermissionError:
-        raise MogError(f"{path}: permission denied") from None
-    except UnicodeDecodeError:
-        raise MogError(f"{path}: not a text file") from None
-    except OSError as e:
-        raise MogError(f"{path}: cannot be read ({e.strerror or e})") from None
-
-
 MAX_YAML_ALIASES = 100  # a scene or scenario needs none: aliases nest into a billion copies
 MAX_YAML_DEPTH = 40  # a scenario nests five deep
 
 
-def check_yaml(text: str, where: str) -> None:
+# YAML's C scanner and loader where PyYAML has them: its Python ones take seconds per 100 kB.
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def check_yaml(text: str, where: str, max_values: int | None = None) -> None:
     """Refuses YAML that would expand past memory or recursion before it is built: more than
-    MAX_YAML_ALIASES aliases, or collections nested deeper than MAX_YAML_DEPTH (one scan of
-    its tokens, nothing expanded)."""
-    aliases = depth = 0
+    MAX_YAML_ALIASES aliases, or collections nested deeper than MAX_YAML_DEPTH, or (with
+    ``max_values``) more scalars than that: one scan of its tokens, nothing expanded."""
+    aliases = depth = values = 0
     try:
-        for token in yaml.scan(text, Loader=yaml.SafeLoader):
-            if isinstance(token, yaml.AliasToken):
+        for token in yaml.scan(text, Loader=_LOADER):
+            if isinstance(token, yaml.ScalarToken) and max_values is not None:
+                values += 1
+                if values > max_values:
+                    raise MogError(f"{where}: more than {max_values:,} YAML values")
+            elif isinstance(token, yaml.AliasToken):
                 aliases += 1
                 if aliases > MAX_YAML_ALIASES:
                     raise MogError(f"{where}: more than {MAX_YAML_ALIASES} YAML aliases")
@@ -211,7 +194,7 @@ def _read_yaml(path: Path) -> dict:
     text = read_text(path, "YAML file")
     check_yaml(text, str(path))
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""
@@ -264,7 +247,10 @@ class ShapeLibrary:
             raise MogError(f"{path}: 'shapes' must be a mapping of name -> shape")
         for name, spec in shapes.items():
             self.shapes[str(name)] = make_shape(str(name), spec)
-        for inv_name, inv in (data.get("inventories", {}) or {}).items():
+        inventories = data.get("inventories", {}) or {}
+        if not isinstance(inventories, dict):
+            raise MogError(f"{path}: 'inventories' must be a mapping of name -> {{shape: count}}")
+        for inv_name, inv in inventories.items():
             if not isinstance(inv, dict):
                 raise MogError(f"{path}: inventory '{inv_name}' must map shape names to counts")
             for shape, count in inv.items():
@@ -276,7 +262,10 @@ class ShapeLibrary:
                     )
             self.inventories[str(inv_name)] = {str(k): int(v) for k, v in inv.items()}
         if "bars" in data:
-            self.bars = tuple(str(b) for b in data["bars"])
+            bars = data["bars"]
+            if not isinstance(bars, list) or not all(isinstance(b, str) and b in self.shapes for b in bars):
+                raise MogError(f"{path}: 'bars' must be a list of the library's shape names, got {bars!r}")
+            self.bars = tuple(bars)
 
     def __getitem__(self, name: str) -> Shape:
         shape = self.shapes.get(name) or self.resting_variants().get(name)

@@ -14,7 +14,7 @@ from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, EventStatus
 
-from mog_drake.errors import MogError
+from mog_drake.errors import MogError, terminating
 from mog_drake.geometry import GripperGeometry, objects_at_grasp, objects_in_reach
 from mog_drake.geometry.conditions import jaw_collision_free
 from mog_drake.geometry.push import near_path, push_duration
@@ -201,6 +201,7 @@ class DrakeVerifier:
             sim.simulator.Initialize()
             sim.simulator.AdvanceTo(duration + self.PUSH_SETTLE)
         except Exception as e:
+            terminating()  # a stop signal raised inside a Drake callback is no physics error
             msg = str(e).splitlines()[0] if str(e) else type(e).__name__
             return PushResult(error=f"simulation failed: {msg}", wall_time=time.perf_counter() - t0)
         finally:
@@ -262,6 +263,7 @@ class DrakeVerifier:
             sim.simulator.Initialize()
             sim.simulator.AdvanceTo(timeline["end"])
         except Exception as e:  # solver failure or a monitor abort
+            terminating()  # a stop signal raised inside a Drake callback is no physics error
             msg = (
                 watch.error or f"simulation failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
             )

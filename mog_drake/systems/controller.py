@@ -143,6 +143,10 @@ class ControllerSystem(LeafSystem):
                     new.attempts[-1] = {**new.attempts[-1], "next_image": [s.mode, round(dt, 3)]}
         if t >= self._limit and s.mode in ("observe", "wait", "settle", "check"):
             new.mode, new.finished = "done", "time limit"
+            if s.mode == "wait":  # say what it was waiting for: a run that planned nothing in
+                # its time did not end well, whatever it picked (none of it, maybe)
+                seen = self._scene.Eval(context).counter >= s.counter
+                new.finished += ", waiting for planning" if seen else ", waiting for perception"
         elif s.mode == "settle" and dt >= self._settle:
             new.mode, new.t_mode, new.t_first = "wait", t, t
             new.counter = new.requested = s.counter + 1

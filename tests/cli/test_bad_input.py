@@ -90,7 +90,7 @@ def test_a_grasp_starting_in_collision_is_no_success(tmp_path, capsys):
     which used to "lift" them."""
     scene = tmp_path / "row.yaml"
     assert run(capsys, "scene", "generate", "--kind", "row", "--class", 3, "--seed", 1, "-o", scene)[0] == 0
-    code, out, _ = run(capsys, "check", scene, "--grasp", 0.01688, 0.00081, 0.4488, "--simulate", "--json")
+    code, out, _ = run(capsys, "check", scene, "--grasp", 16.88, 0.81, 25.71, "--simulate", "--json")
     doc = strict_json(out)
     assert code == 0 and doc["collision_free"] is False
     sim = doc["simulation"]
@@ -129,14 +129,14 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
     one_line_error(*_pick(capsys, surface)[::2], "contact.plant.contact_surface_representation", "quad")
     # Unreadable: as root every file is readable, so the OS's refusal is modelled.
     locked = _write(tmp_path, "locked.yaml", "time_limit: 5\n")
-    import mog_drake.scenes.library as library
+    import mog_drake.files as files
 
     def refused(path, *a, **kw):  # what open() raises on a file the user may not read
         if Path(path) == locked:
             raise PermissionError(13, "denied")
         return open(path, *a, **kw)
 
-    monkeypatch.setattr(library, "open", refused, raising=False)
+    monkeypatch.setattr(files, "open", refused, raising=False)
     one_line_error(*_pick(capsys, locked)[::2], "permission denied")
 
 
@@ -161,11 +161,58 @@ def test_pick_scenario_files_that_cannot_be_read(tmp_path, capsys, monkeypatch):
         ("hardware: {camera: !ReplaySource {dir: x, frame_period: 0}}", "hardware.camera.frame_period"),
         ("hardware: {camera: !ReplaySource {dir: x, frame_period: -1}}", "hardware.camera.frame_period"),
         ("hardware: {gripper_move_timeout: 1e6}", "hardware.gripper_move_timeout"),
+        ("hardware: {gripper_port: 70000}", "hardware.gripper_port"),
+        ("hardware: {gripper_port: 0}", "hardware.gripper_port"),
+        ("planner: {seed: -1}", "planner.seed"),
+        ("planner: {robust: {seed: -1}}", "planner.robust.seed"),
+        ("planner: {grasp: {n_positions: 100000000}}", "planner.grasp: n_positions"),
+        ("planner: {grasp: {n_orientations: 100000}}", "planner.grasp: n_positions"),
     ],
 )
 def test_invalid_scenario_values_are_refused_at_load_naming_the_key(text, key):
     with pytest.raises(MogError, match=f"^scenario: {key.replace('.', '[.]')}"):
         scenario_from_text(text)
+
+
+@pytest.mark.parametrize("text", ["", "# nothing set\n", "---\n", "~\n"])
+def test_an_empty_scenario_keeps_every_default(text):
+    from mog_drake.scenario import scenario_yaml
+
+    assert scenario_yaml(scenario_from_text(text)) == scenario_yaml(scenario_from_text("time_limit: 600.0"))
+
+
+def test_a_long_list_in_a_scenario_is_refused_in_one_short_line(tmp_path, capsys):
+    """2 MB on one line is over the size a scenario may have; 200 kB of numbers (under it) are
+    more values than a scenario holds: both refused from one scan, the line not echoing them."""
+    for n in (400_000, 45_000):
+        f = tmp_path / f"long{n}.yaml"
+        f.write_text("table: [" + ", ".join(["1.0"] * n) + "]\n")
+        code, _, err = run(capsys, "pick", "--scenario", f)
+        one_line_error(code, err, "over 1 MiB" if n > 100_000 else "more than 5,000 YAML values")
+        assert len(err) < 300
+
+
+@pytest.mark.parametrize(
+    "text,words",
+    [("bars: 3\n", "'bars' must be a list"), ("inventories: [1, 2]\n", "'inventories' must be a mapping")],
+)
+def test_a_shapes_file_with_wrongly_typed_sections_is_one_line(tmp_path, capsys, text, words):
+    f = tmp_path / "shapes.yaml"
+    f.write_text(text)
+    one_line_error(*run(capsys, "shapes", "--shapes", f)[::2], words)
+
+
+def test_a_reader_that_goes_away_ends_the_output_quietly():
+    """`mog-drake shapes | true`: the pipe is closed before the table is written. As any Unix
+    tool: no message, exit 141 (128 + SIGPIPE)."""
+    p = subprocess.run(
+        f"{sys.executable} -m mog_drake.cli shapes --json | true; echo ${{PIPESTATUS[0]}}",
+        shell=True,
+        executable="/bin/bash",
+        capture_output=True,
+        text=True,
+    )
+    assert p.stdout.strip() == "141" and p.stderr == "", p.stderr
 
 
 @pytest.mark.parametrize(
@@ -245,12 +292,29 @@ def test_an_unwritable_output_and_a_broken_replay_frame_get_one_line(tmp_path, c
     )
 
 
+def test_a_grasp_pasted_from_candidates_is_the_candidate_and_one_off_the_table_is_refused(tmp_path, capsys):
+    """`candidates` prints mm and degrees; `check --grasp` takes what it prints."""
+    scene = tmp_path / "row.yaml"
+    run(capsys, "scene", "generate", "--kind", "row", "--class", 4, "--seed", 1, "-o", scene)
+    code, out, _ = run(capsys, "candidates", scene, "--json")
+    doc = strict_json(out)
+    passed = [r for r in doc["candidates"] if r["verdict"] == "passed"][0]
+    text = run(capsys, "candidates", scene)[1]
+    row = next(ln.split() for ln in text.splitlines() if ln.split()[:1] == [str(passed["rank"])])
+    code, out, err = run(capsys, "check", scene, "--grasp", *row[1:4], "--json")  # as printed
+    assert code == 0, err
+    assert strict_json(out)["verdict"] == "passed"
+    # The same numbers read as metres and radians would be 18 m off: refused, not checked.
+    code, out, err = run(capsys, "check", scene, "--grasp", 18530, 7, 51, "--json")
+    one_line_error(code, err, "off the scene's table", "mm and degrees")
+
+
 def test_negative_numbers_in_exponent_form_are_numbers(tmp_path, capsys):
     scene = tmp_path / "row.yaml"
     run(capsys, "scene", "generate", "--kind", "row", "--class", 2, "--seed", 1, "-o", scene)
     code, out, err = run(capsys, "check", scene, "--grasp", "-1e-3", "0", "-2.5E-1", "--json")
     assert code == 0, err
-    assert strict_json(out)["grasp"] == pytest.approx([-1e-3, 0.0, -0.25])
+    assert strict_json(out)["grasp"] == pytest.approx([-1e-6, 0.0, math.radians(-0.25)])
 
 
 # --- machine-readable output -----------------------------------------------------------------
@@ -577,7 +641,7 @@ def test_an_unwritable_record_path_is_refused_before_the_run(tmp_path, capsys, m
 
 
 def test_a_write_cut_short_leaves_the_earlier_file_whole(tmp_path):
-    from mog_drake.outputs import atomic_path, write_atomic
+    from mog_drake.files import atomic_path, write_atomic
 
     path = write_atomic(tmp_path / "replay.html", "<html>earlier</html>")
     with pytest.raises(KeyboardInterrupt):
@@ -618,3 +682,69 @@ def test_devices_and_fifos_are_refused_as_files(tmp_path, capsys):
     for path in ("/dev/zero", str(fifo)):
         code, _, err = run(capsys, "candidates", path)
         assert code == 2 and "not a regular file" in err and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("name", ["results.jsonl", "sweep.json", "failures.jsonl"])
+def test_a_fifo_in_a_sweep_folder_is_refused_in_one_line(tmp_path, capsys, name):
+    """A FIFO where a sweep's file belongs would block `eval` for good: with --out, with
+    --summary-only and as --compare's folder, it is refused in one line, at once."""
+    sweep = tmp_path / "sweep"
+    argv = ["eval", "picking", "--scenes", 1, "--modes", "mog", "--objects", 1, "--time-limit", 0.1]
+    assert run(capsys, *argv, "--out", sweep, "--jobs", 1)[0] == 0
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for f in sweep.iterdir():
+        if f.name != name and f.is_file() and not f.name.startswith("."):
+            (bad / f.name).write_bytes(f.read_bytes())
+    (bad / name).unlink(missing_ok=True)
+    os.mkfifo(bad / name)
+    cases = [["--out", bad, "--jobs", 1]]
+    if name != "failures.jsonl":  # appended to by a run only; a summary and --compare read the others
+        cases += [
+            ["--out", bad, "--summary-only"],
+            ["--out", tmp_path / "fresh", "--jobs", 1, "--compare", bad],
+        ]
+    for extra in cases:
+        code, _, err = run(capsys, *argv, *extra)
+        one_line_error(code, err, "not a regular file")
+
+
+def test_a_fifo_as_a_recorded_frame_is_refused_in_one_line(replay_dir, tmp_path, capsys):
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for f in Path(replay_dir).iterdir():
+        (frames / f.name).write_bytes(f.read_bytes())
+    os.mkfifo(frames / "frame_9999.npz")
+    scenario = tmp_path / "replay.yaml"
+    scenario.write_text(
+        f"hardware: {{camera: !ReplaySource {{dir: '{frames}'}}, enabled: true, dry_run: true, max_joint_speed: 3.5}}\n"
+    )
+    code, _, err = run(capsys, "pick", "--scenario", scenario, "--robot-ip", "127.0.0.1", "--dry-run")
+    one_line_error(code, err, "frame_9999.npz", "not a regular file")
+
+
+def test_sigterm_twice_stops_a_sweep_with_143_and_stores_nothing_half_done(tmp_path):
+    """`kill` twice in a row while `eval conditions --jobs 1` checks grasps in physics: the
+    first signal ends the sweep through its cleanup (the second one, arriving during it, is
+    ignored), the process exits 143 with one line, and no check the signal cut short is
+    stored as a result."""
+    out = tmp_path / "sweep"
+    argv = ["eval", "conditions", "--jobs", "1", "--classes", "2-7", "--scenes-per-class", "5"]
+    p = subprocess.Popen(
+        [sys.executable, "-m", "mog_drake.cli", *argv, "--out", str(out)],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    for _ in range(300):  # bounded: the sweep has started once it wrote its description
+        if (out / "sweep.json").exists():
+            break
+        time.sleep(0.05)
+    time.sleep(1.5)  # inside a physics check
+    p.send_signal(signal.SIGTERM)
+    time.sleep(0.02)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 143, err
+    assert err.splitlines()[-1] == "mog-drake: terminated by SIGTERM"
+    stored = (out / "results.jsonl").read_text()
+    assert "simulation failed" not in stored and "Terminated" not in stored

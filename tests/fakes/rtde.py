@@ -80,8 +80,11 @@ class FakeRTDEControl:
         self.ur = ur
         self.refuse_after = refuse_after  # servoJ returns False from this call on (e.g. no script)
         # Test scaffolding, not ur_rtde: {n: f} calls f(controller state) once the n-th target
-        # has been accepted, e.g. to drop the link or raise a protective stop mid-motion.
+        # has been accepted, e.g. to drop the link or raise a protective stop mid-motion;
+        # before_servo {n: f} just before the n-th servoJ call is handled (a stop that arrives
+        # between the driver's poll of the robot's state and its next target).
         self.on_servo: dict = {}
+        self.before_servo: dict = {}
 
     def isConnected(self) -> bool:
         return self.ur.connected
@@ -94,6 +97,9 @@ class FakeRTDEControl:
         now = time.monotonic()
         self.ur.calls.append(("servoJ", list(q)))
         ur = self.ur
+        early = self.before_servo.get(sum(c[0] == "servoJ" for c in ur.calls))
+        if early is not None:
+            early(ur)
         if not ur.connected or ur.protective_stop or ur.emergency_stop or ur.robot_mode != 7:
             return False
         if self.refuse_after is not None and len(ur.servo) >= self.refuse_after:

@@ -260,8 +260,26 @@ def test_a_servoj_refused_by_the_controller_is_a_fault():
     sc = Scenario()
     ur, control, receive = fake_ur5(sc.robot.home, refuse_after=3)
     faults, _ = _run_driver_until_fault(sc, ur, control, receive)
-    assert faults.reason == "UR5: servoJ returned False: the controller did not take the target"
+    assert faults.reason.startswith("UR5: servoJ returned False: the controller did not take the target")
     assert len([c for c in ur.calls if c[0] == "servoJ"]) == 4
+
+
+@pytest.mark.parametrize(
+    "what,expected",
+    [
+        (lambda ur: setattr(ur, "protective_stop", True), "UR5: protective stop (servoJ refused the target)"),
+        (lambda ur: ur.drop_link(), "UR5: connection lost: the RTDE receive interface is disconnected"),
+    ],
+    ids=["protective", "link"],
+)
+def test_a_servoj_refused_for_a_stop_or_a_lost_link_names_the_cause(what, expected):
+    """The stop or the loss arrives between the driver's poll and its next target: servoJ
+    returns False, and the fault names what the controller reports, not the return value."""
+    sc = Scenario()
+    ur, control, receive = fake_ur5(sc.robot.home)
+    control.before_servo = {5: what}
+    faults, _ = _run_driver_until_fault(sc, ur, control, receive)
+    assert faults.reason.startswith(expected), faults.reason
 
 
 def test_faults_keep_the_gripper_closed():
@@ -576,7 +594,9 @@ def test_sigterm_and_sighup_stop_the_arm_and_exit_128_plus_the_signal(
     assert sent == [40] and len(ur.servo) == 40  # not one target more
     calls = [c[0] for c in ur.calls if c[0] != "servoJ"]
     assert calls[-4:] == ["servoStop", "stopScript", "disconnect_control", "disconnect_receive"], calls
-    assert signal.getsignal(signum) == before  # the handlers the run replaced are back
+    # The process is stopping: a second signal must not kill it before it exits 128 + signum.
+    assert signal.getsignal(signum) == signal.SIG_IGN
+    signal.signal(signum, before)
 
 
 def test_dry_run_logs_commands_and_sends_nothing(replay_dir, tmp_path):

@@ -331,3 +331,33 @@ def test_a_checks_verdict_does_not_depend_on_what_was_checked_before():
     again = fast.check(scene, scene.group, ga)
     alone = _picking_and_reference()[0].check(scene, scene.group, ga)
     assert _outcome(first) == _outcome(again) == _outcome(alone)
+
+
+def test_a_stop_signal_during_a_check_stops_it_and_is_not_a_result(verifier, monkeypatch):
+    """SIGTERM's handler raises `Terminated` wherever Python runs; raised inside a Drake
+    callback while pybind11 converts an argument, it comes back out of the C++ layer as a
+    ``TypeError`` ("SetFromVector(): incompatible function arguments"). The check must then
+    raise `Terminated`, not return a failed check that a sweep would store as a result. Here
+    the monitor plays that callback: the signal arrives in it and the simulation fails with
+    the TypeError."""
+    import signal
+
+    from mog_drake import errors
+    from mog_drake.sim import verifier as verifier_module
+
+    signalled = [True]
+
+    def mangled(self, root_context):
+        if signalled[0]:
+            errors._arrived.append(signal.SIGTERM)  # what the handler records before it raises
+        raise TypeError("SetFromVector(): incompatible function arguments")
+
+    scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
+    monkeypatch.setattr(verifier_module._Watch, "__call__", mangled)
+    monkeypatch.setattr(errors, "_arrived", [])
+    with pytest.raises(errors.Terminated):
+        verifier.check(scene, (0,), [0.0, 0.0, 0.0])
+    errors._arrived.clear()
+    signalled[0] = False
+    r = verifier.check(scene, (0,), [0.0, 0.0, 0.0])  # no signal: a failed simulation is a result
+    assert not r.success and "incompatible function arguments" in r.error

@@ -8,6 +8,7 @@ thread; CPU time is this thread's (`time.thread_time`), so run the bench alone.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -117,7 +118,8 @@ def _summary(rows: list[dict], cpu: dict, out) -> dict:
             path = Path(out) / f"disagreement_{k:02d}.yaml"
             path.parent.mkdir(parents=True, exist_ok=True)
             replace(r["scene"], group=tuple(r["group"])).save(path)
-            g = " ".join(f"{v:.6f}" for v in r["grasp"])
+            x, y, th = (float(v) for v in r["grasp"])
+            g = f"{x * 1e3:.4f} {y * 1e3:.4f} {math.degrees(th):.4f}"  # mm and degrees, as --grasp takes
             entry["replay"] = (
                 f"mog-drake check {path} --grasp {g} --simulate [--scenario models/{REFERENCE_FILE.name}]"
             )
