@@ -24,6 +24,19 @@ class HardwareFault(MogError):
     exit_code = 3
 
 
+class StationFault(MogError):
+    """The simulated station's physics failed (a non-finite state, the contact solver did not
+    converge). The message names the time and the body; ``run`` is the record of what the run
+    did until then and ``path`` the file the station's last finite state was saved to. The
+    CLI prints the record, then the one line, and exits 3."""
+
+    exit_code = 3
+
+    def __init__(self, message: str, run=None, path=None):
+        super().__init__(message)
+        self.run, self.path = run, path
+
+
 class Terminated(BaseException):
     """SIGTERM or SIGHUP arrived (`kill`, systemd, a container runtime, a closed terminal).
 

@@ -19,6 +19,20 @@ MAX_TEXT_BYTES = 2**20
 MAX_DATA_BYTES = 2**30
 
 
+def model_path(name: str) -> Path:
+    """A file shipped with the package in ``models/``: the resource package
+    ``mog_drake.models`` of an installed package (a wheel, or an editable install that maps it
+    onto the checkout's top-level ``models/``), or that folder itself when ``mog_drake`` is
+    imported straight from a source tree (``python -m mog_drake.cli`` in a checkout or a
+    worktree). Its path on disk."""
+    from importlib.resources import files
+
+    try:
+        return Path(str(files("mog_drake.models") / name))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parents[1] / "models" / name
+
+
 def read_bytes(path: str | Path, what: str = "file", limit: int = MAX_DATA_BYTES) -> bytes:
     """A regular file's contents, or one `MogError` line saying why not: missing, a
     directory, not a regular file (a FIFO, a device), unreadable, or over ``limit`` bytes."""

@@ -27,7 +27,7 @@ from pydrake.visualization import VisualizationConfig
 from mog_drake.camera import default_camera
 from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
 from mog_drake.errors import MogError
-from mog_drake.files import read_text
+from mog_drake.files import model_path, read_text
 from mog_drake.hardware.config import HardwareSpec, ReplaySource
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
@@ -36,7 +36,7 @@ from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.sim.realism import RealismConfig
 from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
 
-SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
+SCENARIO_YAML = model_path("scenario.yaml")
 # A scenario sets a few hundred values (models/scenario.yaml, every setting: about 250); many
 # more is a mistake that the typed loader would take seconds per 100 kB to refuse.
 MAX_SCENARIO_VALUES = 5000
@@ -186,11 +186,23 @@ class Scenario:
 
 
 # --- loading ----------------------------------------------------------------------------------
+def scenario_path(path: str) -> Path:
+    """``path``, or where it names a scenario shipped in ``models/`` by its bare name (no
+    such file here, no folder: ``realistic`` or ``realistic.yaml``), that file."""
+    p = Path(path)
+    if not p.exists() and str(p.parent) == "." and p.suffix in ("", ".yaml"):
+        shipped = model_path(p.stem + ".yaml")
+        if shipped.is_file():
+            return shipped
+    return p
+
+
 def load_scenario(path: str | None = None) -> Scenario:
-    """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""
+    """The default scenario, overridden by a YAML file (keys as the dataclass fields), or by
+    a scenario shipped in ``models/``, named (`scenario_path`)."""
     if not path:
         return Scenario()
-    return scenario_from_text(read_text(path, "scenario file"), str(path))
+    return scenario_from_text(read_text(scenario_path(path), "scenario file"), str(path))
 
 
 def with_overrides(sc: Scenario, where: str = "", **given) -> Scenario:

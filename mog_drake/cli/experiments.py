@@ -60,6 +60,17 @@ def add_parsers(sub) -> None:
     sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
     sp.add_argument("--scenario", help="perception: a scenario's cell; replanning: its planner")
     sp.add_argument(
+        "--depth-noise",
+        metavar="LEVELS",
+        help="perception: depth noise levels, comma-separated, in times the D435's RMS (default: the scenario's)",
+    )
+    sp.add_argument(
+        "--camera-height",
+        type=float,
+        metavar="M",
+        help="perception: the camera's height above the table in m (default: the scenario's, 0.8)",
+    )
+    sp.add_argument(
         "--mode", choices=MODES, help="replanning: the planner's mode (the scenario's when not given)"
     )
     sp.add_argument("--seed", type=int, default=0)
@@ -88,6 +99,25 @@ def cmd_bench(args) -> None:
             not args.json,
             scenario=args.scenario,
             mode=args.mode,
+            noise_levels=_levels(args.depth_noise),
+            camera_height=args.camera_height,
             **given,
         ),
     )
+
+
+def _levels(text: str | None):
+    """--depth-noise LEVELS: non-negative numbers, comma-separated."""
+    if text is None:
+        return None
+    from mog_drake.errors import MogError
+
+    try:
+        levels = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise MogError(
+            f"--depth-noise must be numbers separated by commas, e.g. 1,2,3, got {text!r}"
+        ) from None
+    if not levels or not all(0 <= v <= 10 for v in levels):
+        raise MogError(f"--depth-noise levels must be in [0, 10] (times the D435's RMS), got {text!r}")
+    return levels

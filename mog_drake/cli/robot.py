@@ -55,6 +55,7 @@ def _scenario(args):
 
 def cmd_pick(args) -> None:
     """Builds the pick-and-place Diagram and runs it until the table is clear."""
+    from mog_drake.errors import StationFault
     from mog_drake.systems.pick import run_pick
     from mog_drake.systems.pick_run import attempt_line, run_heading, run_text
 
@@ -63,9 +64,20 @@ def cmd_pick(args) -> None:
     if not args.json:
         print(run_heading(sc), flush=True)
     line = None if args.json else (lambda k, a: print(attempt_line(k, a), flush=True))
-    run = run_pick(
-        sc, meshcat=meshcat, on_attempt=line, realtime=sc.hardware.enabled and not sc.hardware.dry_run
-    )
+    try:
+        run = run_pick(
+            sc, meshcat=meshcat, on_attempt=line, realtime=sc.hardware.enabled and not sc.hardware.dry_run
+        )
+    except StationFault as e:  # what was done, then the fault's one line (exit 3)
+        if e.run is not None:
+            doc = {
+                "summary": e.run.summary(),
+                "attempts": e.run.attempts,
+                "fault": str(e),
+                "state": str(e.path),
+            }
+            emit(args, doc, run_text(e.run, e.run.summary()))
+        raise
     summary = run.summary()
     if args.record:
         write_atomic(args.record, meshcat.StaticHtml())

@@ -54,10 +54,10 @@ def evaluate(
             scenario = ""
             if o["scenario"]:
                 from mog_drake.files import read_text
-                from mog_drake.scenario import load_scenario
+                from mog_drake.scenario import load_scenario, scenario_path
 
                 load_scenario(o["scenario"])  # refuses a bad file before anything runs
-                scenario = read_text(o["scenario"], "scenario file")
+                scenario = read_text(scenario_path(o["scenario"]), "scenario file")
             modes = parse_names(o["modes"], MODES, "--modes")
             summary, results = picking_eval.run(
                 o["scenes"], modes, o["seed"], out, o["objects"], o["time_limit"],

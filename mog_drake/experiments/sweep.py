@@ -200,6 +200,10 @@ def run_sweep(
     with folder_lock(out_dir):
         done = load_results(path, valid=valid)
         todo = [t for t in tasks if t["key"] not in done]
+        if ray_address and todo:
+            from mog_drake.experiments.cluster import connect
+
+            connect(ray_address)  # refused in one line before anything runs
         bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
         bar.update(len(tasks) - len(todo))
         failed: list[dict] = []
@@ -314,11 +318,8 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _execute_ray(tasks: list[dict], worker, address: str):
-    try:
-        import ray
-    except ImportError:
-        raise MogError("--ray needs Ray: pip install 'mog_drake[ray]'") from None
-    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    import ray  # connected (`cluster.connect`) before the sweep began
+
     remote = ray.remote(_guarded)
     pending = [remote.remote(worker, t) for t in tasks]
     while pending:

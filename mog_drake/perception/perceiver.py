@@ -41,7 +41,16 @@ from mog_drake.perception.fitting import (
     symmetry_order,
 )
 from mog_drake.perception.instances import InstanceFitter, _Image, _Window
-from mog_drake.perception.pointcloud import Pinhole, backproject, chromaticity
+from mog_drake.perception.pointcloud import (
+    DARK,
+    Pinhole,
+    backproject,
+    chromaticity,
+    colour_labels,
+    depth_noise,
+    replace_outliers,
+    smooth_within,
+)
 from mog_drake.scenes import Scene, SceneObject, ShapeLibrary, default_library
 
 
@@ -113,6 +122,16 @@ def table_plane(P: np.ndarray, ok: np.ndarray, band: float, stride: int = 4) -> 
     return np.nan_to_num(coef[0] * P[..., 0] + coef[1] * P[..., 1] + coef[2])
 
 
+def smoothing_radius(noise: float) -> int:
+    """The half-width (pixels) of the window `smooth_within` averages depth over, for a
+    camera whose depth noise on the table is ``noise`` (m RMS): 0 below 1.5 mm (a rendered
+    image, or a good camera close up), then wide enough to bring it under about 1.5 mm (a box
+    of (2 r + 1)^2 pixels divides it by up to 2 r + 1; at most 3)."""
+    if noise < 0.0015:
+        return 0
+    return int(min(max(math.ceil((noise / 0.0015 - 1) / 2), 1), 3))
+
+
 def _inside(P: np.ndarray, rect) -> np.ndarray:
     """Which points of P (..., 3) lie strictly inside rect (xmin, xmax, ymin, ymax) in x, y."""
     x0, x1, y0, y1 = rect
@@ -160,6 +179,7 @@ class Perceiver(InstanceFitter):
             ]
         )
         self.sym = {n: symmetry_order(self.library[n].vertices) for n in names}
+        self.heights = np.array([self.library[n].height for n in names])
         self.area = [self.library[n].area for n in names]
 
     def _unexplained(self, found, im, obj, area_px) -> list:
@@ -200,6 +220,17 @@ class Perceiver(InstanceFitter):
         X_WC = np.asarray(X_WC, float)
         after = np.asarray(after, np.float32)
         before = np.asarray(before, np.float32).reshape(after.shape)
+        # A noisy camera: both images averaged as `perceive` averages them, and the threshold
+        # raised to four times the noise left in their difference.
+        noise = depth_noise(before, np.isfinite(before))
+        radius = smoothing_radius(noise)
+        if radius:
+            flat_label = np.zeros(after.shape, np.int32)
+            before, after = (
+                smooth_within(before, flat_label, radius),
+                smooth_within(after, flat_label, radius),
+            )
+            tol = max(tol, 4 * math.sqrt(2) * noise / (2 * radius + 1))
         Pa = backproject(after, X_WC, *intrinsics)
         region = np.isfinite(Pa[..., 2]) & _inside(Pa, self.table)
         for r in self.ignore:
@@ -222,38 +253,71 @@ class Perceiver(InstanceFitter):
             changed = ndimage.binary_opening(changed, structure=np.ones((settle_px, settle_px), bool))
         return int(changed.sum())
 
+    def _heights(self, rgb: np.ndarray, depth: np.ndarray, X_WC: np.ndarray, intrinsics):
+        """(P, z, cls, depth): the points of the perceived table (H, W, 3; nan elsewhere), their
+        heights above the table, each object pixel's colour class (-1 on every other pixel) and
+        the depth they were computed from.
+
+        Colour decides what can be an object: a pixel nearer the table's own colour (the
+        median colour of the pixels seen at the table's height) than to any object's, or too
+        dark to tell, is never an object pixel, however its depth is off. Depth is then
+        averaged within each colour (`smooth_within`) over a window as wide as the noise seen
+        on the table needs (`smoothing_radius`): heights hold their top band at several times
+        a camera's rated noise, and a hole takes its neighbours' depth."""
+        cfg = self.config
+        P0 = backproject(depth, X_WC, *intrinsics)
+        region = _inside(P0, self.table)
+        for r in self.ignore:
+            region &= ~_inside(P0, r)
+        seen = region & np.isfinite(P0[..., 2])
+        bright = rgb[..., :3].max(axis=-1) >= DARK * 255
+        flat = seen & bright & (np.abs(P0[..., 2]) < cfg.table_band)
+        some = flat if flat.sum() >= 100 else seen & bright
+        table = np.median(chromaticity(rgb[..., :3][some][::7]), axis=0)  # a sample: the table is most
+        label = colour_labels(rgb, self.chroma, table)
+        # Each shape's colour class; an object of no library colour gets a class of its own,
+        # which no shape fits: an unrecognised blob.
+        classes = np.append(self.colour_class, len(self.names))
+        label = np.where(label >= 0, classes[np.maximum(label, 0)], label)
+        label[~region] = -3  # off the perceived table: averaged with nothing on it
+        noise = depth_noise(depth, seen & (label == -1))
+        radius = smoothing_radius(noise)
+        if radius:  # flying pixels out first: averaged, they would pull a thin bar's top down
+            depth = replace_outliers(depth, label, seen & (label >= 0), max(4 * noise, cfg.top_band))
+        smoothed = smooth_within(depth, label, radius)
+        if radius == 0 and not np.isfinite(depth[region]).all():
+            # A hole takes its nearest neighbours' depth, however little the noise.
+            smoothed = np.where(np.isfinite(depth), smoothed, smooth_within(depth, label, 1))
+        P = backproject(smoothed, X_WC, *intrinsics)
+        ok = region & np.isfinite(P[..., 2])
+        P[~ok] = np.nan
+        if cfg.fit_table:
+            P[..., 2] -= table_plane(P, ok & (label == -1), cfg.table_band)
+        z = P[..., 2]
+        cls = np.where(ok & (label >= 0) & (z > cfg.min_height) & (z < cfg.max_height), label, -1)
+        return P, z, cls.astype(np.int32), smoothed
+
     def perceive(
         self, rgb: np.ndarray, depth: np.ndarray, X_WC: np.ndarray, intrinsics, seed: int = 0
     ) -> Scene:
         """rgb (H, W, 3 or 4) uint8, depth (H, W) m, X_WC 4x4 camera pose, intrinsics (fx, fy, cx, cy)."""
         cfg = self.config
         fx, fy, cx, cy = intrinsics
-        depth = np.asarray(depth).reshape(rgb.shape[:2])
-        if depth.dtype != np.float32:
-            depth = depth.astype(np.float64)
-        P = backproject(depth, np.asarray(X_WC, float), fx, fy, cx, cy)
-        ok = np.isfinite(P[..., 2]) & _inside(P, self.table)
-        for r in self.ignore:
-            ok &= ~_inside(P, r)
-        P[~ok] = np.nan
-        if cfg.fit_table:
-            P[..., 2] -= table_plane(P, ok, cfg.table_band)
-        z = P[..., 2]
-        obj = ok & (z > cfg.min_height) & (z < cfg.max_height)
+        depth = np.asarray(depth, np.float32).reshape(rgb.shape[:2])
+        X_WC = np.asarray(X_WC, float)
+        P, z, cls, depth = self._heights(rgb, depth, X_WC, intrinsics)
+        obj = cls >= 0
         # Footprint of one pixel on a plane facing the camera at its depth: its weight in areas.
-        area_px = np.where(obj, depth**2 / (fx * fy), 0.0)
-        # Nearest chromaticity: argmin |c - k|^2 = argmin |k|^2 - 2 c.k. Written out per
-        # channel, not as a matrix product: a product this tall is one OpenBLAS threads, and
-        # its worker then spins on the other core for about 0.1 s after it (measured: twice
-        # the CPU time of the wall time per image), a core the simulator and the planner need.
+        area_px = np.where(obj, depth.astype(np.float64) ** 2 / (fx * fy), 0.0)
         obj_px = np.flatnonzero(obj)
-        ch = chromaticity(rgb[..., :3].reshape(-1, 3)[obj_px])
-        K = self.chroma
-        dots = ch[:, 0, None] * K[:, 0] + ch[:, 1, None] * K[:, 1] + ch[:, 2, None] * K[:, 2]
-        obj_cls = self.colour_class[np.argmin((K**2).sum(-1) - 2 * dots, axis=1)]
+        obj_cls = cls.ravel()[obj_px]
         obj_z = z.ravel()[obj_px]
-        cls = np.full(z.shape, -1, dtype=np.int32)
-        cls.ravel()[obj_px] = obj_cls
+        # Each object pixel is at the top of the shape of its colour whose height is nearest
+        # its own: a bar upright (30 mm) or on its side, a cube (30 mm) or on its side (25 mm),
+        # told apart by the nearer height, not by two overlapping bands.
+        gap = np.abs(obj_z[:, None] - self.heights[None, :])
+        gap[obj_cls[:, None] != self.colour_class[None, :]] = np.inf
+        obj_top = self.heights[np.argmin(gap, axis=1)] if len(obj_px) else obj_z
         im = _Image(P, z, cls, Pinhole(X_WC, intrinsics))
         rng = np.random.default_rng(seed)
         found: list[SceneObject] = []
@@ -277,15 +341,29 @@ class Perceiver(InstanceFitter):
             pending.clear()
             wins.clear()
 
+        by_colour: dict[int, tuple] = {}  # colour class -> its components (`components`)
         for k in order:
             if any(self._interact(k, j) for j, *_ in pending):
                 flush()
             shape = self.library[self.names[k]]
             area = self.area[k]
-            mine = obj_px[(obj_cls == self.colour_class[k]) & (np.abs(obj_z - shape.height) < cfg.top_band)]
-            labels, members = components(mine, z.shape)
-            if not members:
+            mine = obj_px[
+                (obj_cls == self.colour_class[k])
+                & (obj_top == shape.height)
+                & (np.abs(obj_z - shape.height) < cfg.top_band)
+            ]
+            if not len(mine):
                 continue
+            # Components of the object's colour (any height), each holding its pixels at this
+            # top: noise that drops a few pixels of a top out of the band does not cut it in
+            # pieces, each too small to count.
+            c = self.colour_class[k]
+            if c not in by_colour:
+                by_colour[c] = components(obj_px[obj_cls == c], z.shape)
+            at_top = np.zeros(z.size, bool)
+            at_top[mine] = True
+            labels = np.where(at_top.reshape(z.shape), by_colour[c][0], 0)
+            members = [m[at_top[m]] for m in by_colour[c][1]]
             colour = cls == self.colour_class[k]
             lone, several = [], []
             for label, idx in enumerate(members, start=1):

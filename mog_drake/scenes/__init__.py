@@ -11,7 +11,6 @@ frame (origin at the centre of the table top, z up). Units are SI.
 from mog_drake.scenes.generators import ROW_CLASSES, ClutterParams, RowParams, cluttered_scene, row_scene
 from mog_drake.scenes.library import (
     DEFAULT_SHAPES_FILE,
-    MODELS_DIR,
     Shape,
     ShapeLibrary,
     default_library,
@@ -23,7 +22,6 @@ __all__ = [
     "DEFAULT_OVERLAP_TOL",
     "DEFAULT_SHAPES_FILE",
     "DEFAULT_TABLE",
-    "MODELS_DIR",
     "ROW_CLASSES",
     "ClutterParams",
     "RowParams",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -11,7 +10,7 @@ import numpy as np
 import yaml
 
 from mog_drake.errors import MogError
-from mog_drake.files import read_text
+from mog_drake.files import model_path, read_text
 from mog_drake.geometry.polygon import (
     edge_directions,
     final_diameters,
@@ -19,8 +18,7 @@ from mog_drake.geometry.polygon import (
     validate_convex_polygon,
 )
 
-MODELS_DIR = Path(os.environ.get("MOG_DRAKE_MODELS", Path(__file__).resolve().parents[2] / "models"))
-DEFAULT_SHAPES_FILE = MODELS_DIR / "shapes.yaml"
+DEFAULT_SHAPES_FILE = model_path("shapes.yaml")
 #: A shape is a tabletop object: its vertices within this distance of its origin, its height
 #: at most this (m). Larger numbers are typos, and break the physics.
 MAX_SHAPE_SIZE = 0.5

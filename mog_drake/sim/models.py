@@ -16,8 +16,12 @@ from pydrake.geometry import (
     Box,
     CollisionFilterDeclaration,
     Convex,
+    GeometryInstance,
     HalfSpace,
+    MakePhongIllustrationProperties,
+    PerceptionProperties,
     ProximityProperties,
+    Rgba,
     Sphere,
 )
 from pydrake.math import RigidTransform, RotationMatrix
@@ -31,6 +35,7 @@ from pydrake.multibody.tree import (
 )
 
 from mog_drake.geometry import GripperGeometry
+from mog_drake.geometry.polygon import convex_hull_ccw
 
 
 class _NoDeformableHalfSpaceWarning(logging.Filter):
@@ -192,6 +197,27 @@ def prism_points(shape) -> np.ndarray:
     return pts
 
 
+# m: the floor under the table's top: a work cell's table stands 0.7-0.9 m tall.
+FLOOR_DEPTH = 0.75
+
+
+def add_floor(
+    plant: MultibodyPlant, contact: ContactConfig, X_WT: RigidTransform, depth: float = FLOOR_DEPTH
+):
+    """The floor under the table (a rigid half-space ``depth`` below the table top, frame
+    ``X_WT``; friction 0.5, no visual: the camera sees none of it past the table). An object
+    knocked off the table lands on it and comes to rest, as in a real cell. (Without it, such
+    an object fell for good, and its free-fall spin, integrated explicitly by the discrete
+    solver, grew step by step until its state was no longer finite: docs/physics.md.)"""
+    plant.RegisterCollisionGeometry(
+        plant.world_body(),
+        X_WT @ RigidTransform([0.0, 0.0, -depth]),
+        HalfSpace(),
+        "floor",
+        _proximity(contact, 0.5, False),
+    )
+
+
 def add_ballast(plant: MultibodyPlant, contact: ContactConfig, X_WB: RigidTransform):
     """Numerics, not physics: a 100 g sphere resting on a plate of its own at ``X_WB``, with
     no visual, out of every view and reach. Drake 1.51's discrete (SAP) solver fails to
@@ -218,19 +244,50 @@ def add_ballast(plant: MultibodyPlant, contact: ContactConfig, X_WB: RigidTransf
 
 
 def add_prism(
-    plant: MultibodyPlant, shape, name: str, contact: ContactConfig, friction: float = 1.0, mass: float = 1.0
+    plant: MultibodyPlant,
+    shape,
+    name: str,
+    contact: ContactConfig,
+    friction: float = 1.0,
+    mass: float = 1.0,
+    size: float = 0.0,
+    seen=None,
 ):
     """A free body for one library object: a compliant hydroelastic convex prism, mass and
     inertia from its density, its library colour. Body frame at the centre of the bottom face
     (the body-frame origin of the polygon), so a table pose (x, y, theta) is X = (x, y, 0, yaw).
-    ``friction`` and ``mass`` scale its friction coefficient and density (a world that is not
-    the model: `mog_drake.sim.realism`)."""
+
+    A world that is not the model (`mog_drake.sim.realism`): ``friction`` and ``mass`` scale
+    its friction coefficient and density, ``size`` (m) offsets its outline (as made, not as
+    drawn), and ``seen`` = (dx, dy, dyaw) in its own frame is where cameras see it: its
+    perception geometry there, while its collision and illustration (Meshcat) geometry stay
+    where it is."""
+    import shapely
+
     instance = plant.AddModelInstance(name)
-    convex = Convex(prism_points(shape), name)
+    vertices = shape.vertices
+    if size:
+        grown = shapely.Polygon(vertices).buffer(size, join_style="mitre")
+        vertices = convex_hull_ccw(np.asarray(grown.exterior.coords)[:-1])
+    made = replace(shape, vertices=vertices)
+    convex = Convex(prism_points(made), name)
     body = plant.AddRigidBody(name, instance, CalcSpatialInertia(convex, shape.density * mass))
     mu = contact.mu_object * friction
     plant.RegisterCollisionGeometry(body, RigidTransform(), convex, name, _proximity(contact, mu, True))
-    plant.RegisterVisualGeometry(body, RigidTransform(), convex, name, np.array(shape.color))
+    colour = np.array(shape.color)
+    if seen is None or not np.any(seen):
+        plant.RegisterVisualGeometry(body, RigidTransform(), convex, name, colour)
+        return body
+    shown = GeometryInstance(RigidTransform(), convex, name)
+    shown.set_illustration_properties(MakePhongIllustrationProperties(colour))
+    plant.RegisterVisualGeometry(body, shown)
+    camera = GeometryInstance(
+        pose_to_transform(*seen), Convex(prism_points(made), f"{name}_seen"), f"{name}_seen"
+    )
+    props = PerceptionProperties()
+    props.AddProperty("phong", "diffuse", Rgba(*colour))
+    camera.set_perception_properties(props)
+    plant.RegisterVisualGeometry(body, camera)
     return body
 
 

@@ -8,11 +8,16 @@ reaches planning except through the images.
 * camera: an extrinsic calibration error, the rendering camera's pose off the one perception
   assumes (``camera_offset`` m and ``camera_tilt_deg`` per axis, normal);
 * depth: per-pixel noise on every depth image at ``depth_noise`` times the RealSense D435's
-  RMS error at its distance (`d435_rms`), fresh in each image;
+  RMS error at its distance (`d435_rms`), holes (``depth_holes``) and flying pixels
+  (``flying_pixels``), fresh in each image (`depth_artefacts`);
 * objects: each one's mass and its own friction (which Drake combines with the finger's and
   the other objects') times U(1 - s, 1 + s);
 * table and fingers: their friction times U(1 - s, 1 + s), once per run;
-* arm: the tool centre point ``tcp_offset`` m off in the palm's plane (normal, per axis).
+* arm: the tool centre point ``tcp_offset`` m off in the palm's plane (normal, per axis);
+* perception: each object seen off its true pose by its own ``pose_error`` m and
+  ``yaw_error_deg`` (normal; a pose estimator's error, fixed for the object);
+* objects' make: each outline offset by U(-``size_error``, ``size_error``) m;
+* gripper: its grip force times U(1 - s, 1 + s) (``grip_force_spread``), once per run.
 
 No Drake import: the station applies the draws.
 """
@@ -35,16 +40,94 @@ def d435_rms(z):
     return np.asarray(z) ** 2 * D435_SUBPIXEL / (D435_FOCAL_PX * D435_BASELINE)
 
 
+# A stereo depth camera's artefacts besides its noise (`depth_artefacts`). A pixel at a depth
+# step of more than FLY_JUMP (m) is an edge pixel. A hole is likelier on a dark surface (x up to
+# 1 + HOLE_DARK) and a steep one (x up to 1 + HOLE_STEEP): both return less of the projector's
+# pattern to the imagers (Intel's D400 tuning guide: low texture and low reflectivity lower the
+# fill rate; surfaces seen at grazing angles do too). The multipliers are this model's choice,
+# not measured: they shape where holes fall, ``depth_holes`` sets how many.
+FLY_JUMP = 0.010
+HOLE_DARK, HOLE_STEEP = 3.0, 3.0
+
+
+def depth_artefacts(
+    z: np.ndarray,
+    rgb: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    noise: float = 0.0,
+    holes: float = 0.0,
+    flying: float = 0.0,
+    fx: float = D435_FOCAL_PX,
+) -> np.ndarray:
+    """A rendered depth image (H, W; m, nan or inf where nothing is seen) as a stereo depth
+    camera delivers it (a copy, float32); ``rgb`` the colour image of the same view, ``fx``
+    the image's focal length (px).
+
+    1. Flying pixels: with probability ``flying``, a pixel on either side of a depth step
+       takes a depth drawn uniformly between its own and its neighbour's across the step (a
+       stereo matching window straddling the edge mixes both surfaces).
+    2. Holes (nan), when ``holes`` > 0: every pixel the camera's right imager cannot see
+       (stereo occlusion: a pixel whose neighbour at k columns to its right is nearer by k or
+       more pixels of disparity, f B / z, B the D435's 50 mm baseline), and each other pixel
+       with probability ``holes``, more on dark and steep surfaces (HOLE_DARK, HOLE_STEEP).
+    3. Noise: ``noise`` times the D435's RMS error at each pixel's depth (`d435_rms`)."""
+    z = np.array(z, dtype=np.float32)
+    ok = np.isfinite(z)
+    zf = np.where(ok, z, np.float32(np.inf))
+    if flying > 0 or holes > 0:
+        # The largest step to a 4-neighbour, and that neighbour's depth.
+        step = np.zeros(z.shape, np.float32)
+        other = z.copy()
+        for axis, shift in ((0, 1), (0, -1), (1, 1), (1, -1)):
+            n = np.roll(zf, shift, axis=axis)
+            with np.errstate(invalid="ignore"):  # inf - inf: nothing seen on either side
+                d = np.abs(n - zf)
+            d[~np.isfinite(d)] = 0.0
+            edge = [slice(None)] * 2
+            edge[axis] = slice(0, 1) if shift > 0 else slice(-1, None)
+            d[tuple(edge)] = 0.0  # np.roll wraps: no step across the image's border
+            bigger = d > step
+            step = np.where(bigger, d, step)
+            other = np.where(bigger, n, other)
+        at_edge = step > FLY_JUMP
+    if flying > 0:
+        fly = at_edge & (rng.random(z.shape) < flying)
+        z[fly] += (rng.random(int(fly.sum())) * (other[fly] - z[fly])).astype(np.float32)
+    if holes > 0:
+        disparity = np.where(ok, fx * D435_BASELINE / np.where(ok, zf, 1.0), 0.0)
+        reach = int(min(np.ceil(disparity.max() - disparity[ok].min()) if ok.any() else 0, 30))
+        hidden = np.zeros(z.shape, bool)
+        for k in range(1, reach + 1):
+            hidden[:, :-k] |= disparity[:, k:] - disparity[:, :-k] >= k
+        bright = np.asarray(rgb)[..., :3].max(axis=-1) / 255.0
+        # The surface's slope: the depth step to a neighbour over the pixel's footprint (z / fx).
+        steep = np.clip(step * fx / np.where(ok, zf, 1.0), 0.0, 1.0)
+        p = holes * (1 + HOLE_DARK * (1 - bright)) * (1 + HOLE_STEEP * steep)
+        z[hidden | (rng.random(z.shape) < p)] = np.nan
+    if noise > 0:
+        good = np.isfinite(z)
+        sigma = noise * d435_rms(z[good])
+        z[good] += (rng.standard_normal(sigma.shape) * sigma).astype(np.float32)
+    return z
+
+
 # Each difference of the world from the model, and the most it may be set to.
 REALISM_LIMITS = {
     "camera_offset": 0.05,
     "camera_tilt_deg": 5.0,
     "depth_noise": 10.0,
+    "depth_holes": 0.5,
+    "flying_pixels": 1.0,
     "mass_spread": 0.9,
     "friction_spread": 0.9,
     "finger_friction_spread": 0.9,
     "table_friction_spread": 0.9,
     "tcp_offset": 0.02,
+    "pose_error": 0.02,
+    "yaw_error_deg": 10.0,
+    "size_error": 0.003,
+    "grip_force_spread": 0.9,
 }
 
 
@@ -59,11 +142,22 @@ class RealismConfig:
     camera_offset: float = 0.0  # m, normal per axis: the camera's position error
     camera_tilt_deg: float = 0.0  # deg, normal per axis: its orientation error
     depth_noise: float = 0.0  # times the D435's RMS depth error at each pixel's distance
+    # The share of pixels with no depth on a bright surface facing the camera (more on dark and
+    # steep ones), and with it the stereo occlusion at every depth step (`depth_artefacts`).
+    depth_holes: float = 0.0
+    flying_pixels: float = 0.0  # the probability that a pixel at a depth step mixes both sides
     mass_spread: float = 0.0  # each object's mass x U(1 - s, 1 + s)
     friction_spread: float = 0.0  # each object's friction coefficient x U(1 - s, 1 + s)
     finger_friction_spread: float = 0.0  # the jaws' pads, once per run
     table_friction_spread: float = 0.0  # the table's surface, once per run
     tcp_offset: float = 0.0  # m, normal per horizontal axis of the palm: the tool centre point
+    # Each object's pose as the camera sees it, off its true pose by a draw of its own (normal,
+    # per horizontal axis and in yaw) that stays with the object: a pose estimator's error on
+    # that object, apart from the calibration every object shares.
+    pose_error: float = 0.0  # m
+    yaw_error_deg: float = 0.0  # deg
+    size_error: float = 0.0  # m: each object's outline offset by U(-s, s) from the library's
+    grip_force_spread: float = 0.0  # the gripper's grip force x U(1 - s, 1 + s), once per run
 
     @property
     def enabled(self) -> bool:
@@ -93,7 +187,18 @@ class RealismConfig:
             table_friction=float(spread(self.table_friction_spread)),
             tcp_offset=np.append(rng.normal(0.0, 1.0, 2) * self.tcp_offset, 0.0),
             depth_noise=self.depth_noise,
+            depth_holes=self.depth_holes,
+            flying_pixels=self.flying_pixels,
             noise_seed=(self.seed, table_seed),
+            # (Drawn after the draws above, which keep the values they had before these existed.)
+            pose_offset=np.column_stack(
+                [
+                    rng.normal(0.0, 1.0, (n_objects, 2)) * self.pose_error,
+                    np.radians(rng.normal(0.0, 1.0, n_objects) * self.yaw_error_deg),
+                ]
+            ),
+            size_offset=rng.uniform(-1.0, 1.0, n_objects) * self.size_error,
+            grip_force=float(spread(self.grip_force_spread)),
         )
 
 
@@ -109,7 +214,16 @@ class World:
     table_friction: float
     tcp_offset: np.ndarray  # m, in the palm frame
     depth_noise: float
+    depth_holes: float
+    flying_pixels: float
     noise_seed: tuple
+    pose_offset: np.ndarray  # per object (dx, dy, dyaw) in its own frame: where the camera sees it
+    size_offset: np.ndarray  # per object, m: its outline's offset from the library's
+    grip_force: float  # times the gripper's force setting
+
+    @property
+    def depth_artefacts(self) -> bool:
+        return self.depth_noise > 0 or self.depth_holes > 0 or self.flying_pixels > 0
 
     def depth_rng(self, t: float) -> np.random.Generator:
         """The noise of the image taken at simulated time ``t``: the same image (a render

@@ -10,10 +10,11 @@ Collision geometry is capsules along the DH segments; masses are the published l
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
+
+from mog_drake.files import model_path
 
 # UR5 DH parameters (m, rad).
 DH_D = (0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823)
@@ -27,7 +28,7 @@ VELOCITY_LIMIT = math.pi  # rad/s (180 deg/s)
 EFFORT_LIMITS = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)  # N m
 CAPSULE_RADII = (0.06, 0.054, 0.045, 0.04, 0.04, 0.035)
 
-URDF_PATH = Path(__file__).resolve().parents[2] / "models" / "ur5.urdf"
+URDF_PATH = model_path("ur5.urdf")
 
 # --- The robot's frames, the one place they are written ------------------------------------
 #: The gripper's palm frame lies this far beyond the flange (tool0) along the tool axis (m): a

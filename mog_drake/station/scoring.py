@@ -81,27 +81,3 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
             where = "out of view"
         out[int(i)] = (where, [round(float(v), 3) for v in p])
     return out
-
-
-def station_state(handles, x, sleep, retired, t: float, t_good: float | None = None) -> str:
-    """The station's last finite state ``x`` (the plant's positions and velocities, at
-    ``t_good``) in a line for a fault's report: the fault's time, the fastest bodies and where
-    they were, and what was asleep or retired."""
-    plant = handles.plant
-    q, v = x[: plant.num_positions()], x[plant.num_positions() :]
-    speeds = []
-    for i, body in handles.bodies.items():
-        start, at = body.floating_velocities_start_in_v(), body.floating_positions_start()
-        p = q[at + 4 : at + 7]  # after the quaternion: the origin's position
-        speeds.append((float(np.linalg.norm(v[start + 3 : start + 6])), i, p))
-    speeds.sort(key=lambda s: -np.inf if np.isnan(s[0]) else -s[0])  # non-finite first
-    fastest = ", ".join(
-        f"object {i} at {s:.3g} m/s at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m" for s, i, p in speeds[:3]
-    )
-    asleep = sorted(sleep.asleep) if sleep else []
-    arm = np.abs(plant.GetVelocitiesFromArray(handles.robot, v)[:6]).max()  # the UR5's six joints
-    when = "" if t_good is None else f" (t = {t_good:.3f} s)"
-    return (
-        f"(station at t = {t:.3f} s, its last finite state{when}: fastest {fastest}; "
-        f"arm joint speeds up to {arm:.3g} rad/s; asleep {asleep}; retired {sorted(retired)})"
-    )

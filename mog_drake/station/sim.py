@@ -19,7 +19,7 @@ from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.multibody.tree import PdControllerGains, SpatialInertia
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import StateInterpolatorWithDiscreteDerivative
-from pydrake.systems.sensors import ImageDepth32F, RgbdSensor
+from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U, RgbdSensor
 from pydrake.visualization import ApplyVisualizationConfig
 
 from mog_drake.camera import camera_intrinsics, camera_pose
@@ -31,13 +31,14 @@ from mog_drake.scenes import ClutterParams, Scene, cluttered_scene, row_scene
 from mog_drake.sim.models import (
     add_ballast,
     add_bin,
+    add_floor,
     add_gripper_fingers,
     add_prism,
     add_table,
     filter_gripper_self_collisions,
     pose_to_transform,
 )
-from mog_drake.sim.realism import d435_rms
+from mog_drake.sim.realism import depth_artefacts
 from mog_drake.sim.ur5 import JOINT_NAMES, URDF_PATH, base_transform, palm_in_flange
 
 # Meshcat needs no LCM: an in-memory one keeps ApplyVisualizationConfig off the network.
@@ -113,25 +114,31 @@ class _GripperState(LeafSystem):
         output.SetFromVector([x[qr] - x[ql] - self._t, x[vr] - x[vl]])
 
 
-class _DepthNoise(LeafSystem):
-    """Depth image -> the same with a RealSense D435's per-pixel noise (`realism.d435_rms` at
-    each pixel's depth, times ``world.depth_noise``), drawn for the image's time."""
+class _DepthArtefacts(LeafSystem):
+    """(colour image, depth image) -> the depth image as a stereo depth camera delivers it:
+    `realism.depth_artefacts` with the world's noise (times the D435's RMS at each pixel's
+    depth), holes and flying pixels, drawn for the image's time."""
 
-    def __init__(self, world, width: int, height: int):
+    def __init__(self, world, width: int, height: int, fx: float):
         super().__init__()
-        self._world = world
+        self._world, self._fx = world, fx
         blank = AbstractValue.Make(ImageDepth32F(width, height))
+        self.DeclareAbstractInputPort("rgb", AbstractValue.Make(ImageRgba8U(width, height)))
         self.DeclareAbstractInputPort("depth", blank)
         self.DeclareAbstractOutputPort("depth", lambda: blank.Clone(), self._calc)
 
     def _calc(self, context, output) -> None:
-        z = np.array(self.get_input_port().Eval(context).data, dtype=np.float32)
-        ok = np.isfinite(z)
-        sigma = self._world.depth_noise * d435_rms(z[ok])
-        z[ok] += (self._world.depth_rng(context.get_time()).standard_normal(sigma.shape) * sigma).astype(
-            np.float32
+        w = self._world
+        z = depth_artefacts(
+            self.get_input_port(1).Eval(context).data[:, :, 0],
+            self.get_input_port(0).Eval(context).data,
+            w.depth_rng(context.get_time()),
+            noise=w.depth_noise,
+            holes=w.depth_holes,
+            flying=w.flying_pixels,
+            fx=self._fx,
         )
-        output.get_mutable_value().mutable_data[:] = z
+        output.get_mutable_value().mutable_data[:, :, 0] = z
 
 
 def scene_from_spec(spec) -> Scene:
@@ -253,7 +260,8 @@ def _add_arm(plant, scenario: Scenario, world, gripper: GripperGeometry):
         palm, RigidTransform([0, 0, 0.045]), Box(0.09, 0.06, 0.09), "palm", np.array([0.2, 0.2, 0.2, 1.0])
     )
     finger_contact = replace(contact, mu_finger=contact.mu_finger * world.finger_friction)
-    fingers = add_gripper_fingers(plant, robot, palm, gripper, scenario.gripper, finger_contact)
+    physics = replace(scenario.gripper, force_limit=scenario.gripper.force_limit * world.grip_force)
+    fingers = add_gripper_fingers(plant, robot, palm, gripper, physics, finger_contact)
     return (robot, palm, *fingers)
 
 
@@ -271,6 +279,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     X_table = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.0])
     table_contact = replace(contact, mu_table=contact.mu_table * world.table_friction)
     add_table(plant, table_contact, size=(x1 - x0 + 0.6, y1 - y0 + 0.4), X_WT=X_table)
+    add_floor(plant, contact, X_table)
     add_bin(
         plant,
         scenario.contact,
@@ -284,7 +293,16 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     plant.set_gravity_enabled(robot, False)  # a position-controlled arm tracks its command
 
     bodies = {
-        i: add_prism(plant, scene.shape(i), f"object_{i}", contact, world.friction[i], world.mass[i])
+        i: add_prism(
+            plant,
+            scene.shape(i),
+            f"object_{i}",
+            contact,
+            world.friction[i],
+            world.mass[i],
+            size=world.size_offset[i],
+            seen=world.pose_offset[i],
+        )
         for i in range(len(scene))
     }
     # Under the table, out of view: one loaded contact in every step (see add_ballast).
@@ -354,10 +372,12 @@ def _add_camera(builder, scene_graph, cam, world) -> None:
     sensor = builder.AddSystem(RgbdSensor(scene_graph.world_frame_id(), X_WC, color, depth))
     builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
     builder.ExportOutput(sensor.color_image_output_port(), "camera.rgb_image")
-    if world.depth_noise > 0:
-        noise = builder.AddSystem(_DepthNoise(world, cam.width, cam.height))
-        builder.Connect(sensor.depth_image_32F_output_port(), noise.get_input_port())
-        builder.ExportOutput(noise.get_output_port(), "camera.depth_image")
+    if world.depth_artefacts:
+        fx = rendered_intrinsics(cam)[0]
+        real = builder.AddSystem(_DepthArtefacts(world, cam.width, cam.height, fx))
+        builder.Connect(sensor.color_image_output_port(), real.get_input_port(0))
+        builder.Connect(sensor.depth_image_32F_output_port(), real.get_input_port(1))
+        builder.ExportOutput(real.get_output_port(), "camera.depth_image")
     else:
         builder.ExportOutput(sensor.depth_image_32F_output_port(), "camera.depth_image")
     builder.ExportOutput(sensor.label_image_output_port(), "camera.label_image")

@@ -20,7 +20,8 @@ It wakes, before anything can touch it, when
 * it moves itself (its state was set from outside the simulation).
 
 An object falls asleep once it has been at rest on the table (under ``rest_speed`` and
-``rest_turn``, its base within ``table_height`` of the table top) for ``rest_time``, and
+``rest_turn``, its base within ``table_height`` of the table top), or on the floor any way up,
+for ``rest_time``, and
 nothing would wake it now, with ``reach`` and ``margin`` a quarter larger. `update` runs between two
 Simulator advances; the update period must not exceed ``period``.
 """
@@ -31,6 +32,8 @@ import numpy as np
 from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
 from pydrake.multibody.math import SpatialForce, SpatialVelocity
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+
+from mog_drake.sim.models import FLOOR_DEPTH
 
 
 class Sleep:
@@ -49,6 +52,7 @@ class Sleep:
         rest_time: float = 0.2,
         margin: float = 0.01,
         table_height: float = 0.005,
+        floor: float = -FLOOR_DEPTH,
     ):
         self.plant, self.scene_graph = plant, scene_graph
         self.bodies = bodies  # object id -> body
@@ -60,6 +64,7 @@ class Sleep:
         self.finger_reach = finger_reach
         self.rest_speed, self.rest_turn, self.rest_time = rest_speed, rest_turn, rest_time
         self.margin, self.table_height = margin, table_height
+        self.floor = floor  # m: the floor's height (`sim.models.add_floor`)
         self.asleep: dict[int, object] = {}  # object id -> its collision filter's id
         self._rest_since: dict[int, float] = {}
         self._geometry = {i: plant.CollectRegisteredGeometries([b]) for i, b in bodies.items()}
@@ -112,7 +117,10 @@ class Sleep:
         for k, i in enumerate(ids):
             if i in self.asleep or i in skip:
                 continue
-            at_rest = v[k] < self.rest_speed and w[k] < self.rest_turn and abs(p[k][2]) < self.table_height
+            # On the table, standing on its base; or lying on the floor, any way up (knocked
+            # off the table: nothing will reach it there).
+            supported = abs(p[k][2]) < self.table_height or p[k][2] < self.floor + self.radii[i]
+            at_rest = v[k] < self.rest_speed and w[k] < self.rest_turn and supported
             if not at_rest:
                 self._rest_since.pop(i, None)
                 continue

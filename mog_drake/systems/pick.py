@@ -10,12 +10,13 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from mog_drake.camera import camera_pose
-from mog_drake.errors import HardwareFault, stop_on_signals
+from mog_drake.errors import HardwareFault, StationFault, stop_on_signals
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.scenario import Scenario
+from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
-from mog_drake.station.scoring import BinRetirement, objects_in_bin, station_state, where_left
+from mog_drake.station.fault import fault_line, save_fault
+from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
 from mog_drake.systems.pacer import WallClockPacer
@@ -237,11 +238,10 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
                 pacer.advance_to(ctx.get_time() + step)
             else:
                 sim.AdvanceTo(ctx.get_time() + step)
-        except RuntimeError as e:
+        except RuntimeError:
             if good is None:
                 raise
-            line = station_state(handles, good[1], sleep, gone, ctx.get_time(), good[0])
-            raise RuntimeError(f"{e} {line}") from None
+            _fault(scenario, parts, ctx, run, good, sleep, gone, t0)
         if retire:
             retire.update(plant_ctx)
         if sleep:
@@ -289,14 +289,44 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     if meshcat is not None:
         meshcat.StopRecording()
         meshcat.PublishRecording()
-    if scored:
+    return _record(run, scenario, parts, ctx, gone, t0)
+
+
+def _fault(scenario, parts, ctx, run: PickRun, good, sleep, gone, t0: float):
+    """Ends a run whose station faulted: the record of what it did until then (`_record`, read
+    from the last finite state ``good`` = (time, plant state)), that state saved to a file,
+    and `StationFault` naming the time and the body."""
+    handles = parts["handles"]
+    t = ctx.get_time()
+    t_good, x = good
+    line = fault_line(handles, x, t, t_good)
+    handles.plant.SetPositionsAndVelocities(handles.plant.GetMyMutableContextFromRoot(ctx), x)
+    run.finished = "station fault"
+    run.skipped = list(parts["controller"].state(parts["controller"].GetMyContextFromRoot(ctx)).skipped)
+    run = _record(run, scenario, parts, ctx, gone, t0)
+    name = f"seed{getattr(scenario.scene, 'seed', 0)}-{scenario.planner.mode}-t{t:.3f}"
+    asleep = sleep.asleep if sleep else ()
+    try:
+        path = save_fault(handles, scenario_yaml(scenario), x, t_good, asleep, gone, line, name)
+        where = f"; its last finite state is saved in {path}"
+    except OSError as e:
+        path, where = None, f"; its last finite state could not be saved ({e.strerror or e})"
+    raise StationFault(line + where, run=run, path=path) from None
+
+
+def _record(run: PickRun, scenario, parts, ctx, gone, t0: float) -> PickRun:
+    """``run`` completed from the station and the controller: what is in the bin and where the
+    rest lies (simulation only), and the times (``t0``: the run's start, perf_counter)."""
+    handles, controller = parts["handles"], parts["controller"]
+    if handles.plant is not None:
+        plant_ctx = handles.plant.GetMyContextFromRoot(ctx)
         in_bin = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
         run.in_bin = len(in_bin)
         run.left = where_left(handles.plant, plant_ctx, handles.bodies, scenario, in_bin)
         run.shapes = [o.shape for o in handles.scene.objects]
     run.sim_time = ctx.get_time()
     run.wall_time = time.perf_counter() - t0
-    s = controller.state(ctrl_ctx)
+    s = controller.state(controller.GetMyContextFromRoot(ctx))
     run.robot_time, run.wait_perception, run.wait_planning = s.robot_time, s.wait_perception, s.wait_planning
     run.cycle_time = (s.t_end if s.t_end is not None else ctx.get_time()) - (s.t_first or 0.0)
     run.perception_time = parts["perception"].wall_total(parts["perception"].GetMyContextFromRoot(ctx))

@@ -2,13 +2,16 @@
 
 import numpy as np
 import pytest
+import shapely
 from conftest import make_scene
+from pydrake.geometry import Role
+from pydrake.math import RollPitchYaw
 
 from mog_drake.errors import MogError
 from mog_drake.planning.config import RobustConfig
 from mog_drake.planning.robust import RobustVerifier
 from mog_drake.scenario import ClutteredScene, Scenario, load_scenario
-from mog_drake.sim.realism import RealismConfig, d435_rms
+from mog_drake.sim.realism import D435_BASELINE, FLY_JUMP, RealismConfig, d435_rms, depth_artefacts
 from mog_drake.sim.verifier import DrakeVerifier
 
 REAL = RealismConfig(
@@ -20,6 +23,12 @@ REAL = RealismConfig(
     finger_friction_spread=0.3,
     table_friction_spread=0.3,
     tcp_offset=0.001,
+    depth_holes=0.01,
+    flying_pixels=0.3,
+    pose_error=0.002,
+    yaw_error_deg=2.0,
+    size_error=0.0005,
+    grip_force_spread=0.2,
 )
 
 
@@ -40,6 +49,51 @@ def test_the_realistic_cell_is_seeded_per_table_and_off_by_default():
     assert np.all(ideal.mass == 1) and np.all(ideal.friction == 1) and not ideal.camera_offset.any()
     # The D435's RMS depth error at the camera's 0.8 m (Intel's tuning guide): about 2.3 mm.
     assert d435_rms(0.8) == pytest.approx(0.0023, abs=1e-4)
+
+
+def _block_on_table(z_table=0.8, z_top=0.77, fx=600.0):
+    """A depth image of a 40 x 40 pixel block on a table, and its colour image (mid-grey)."""
+    z = np.full((120, 160), z_table, np.float32)
+    z[40:80, 60:100] = z_top
+    return z, np.full((120, 160, 3), 128, np.uint8), fx
+
+
+def test_depth_artefacts_are_seeded_and_off_by_default():
+    z, rgb, fx = _block_on_table()
+    assert np.array_equal(depth_artefacts(z, rgb, np.random.default_rng(0), fx=fx), z)  # nothing asked
+    art = dict(noise=2.0, holes=0.02, flying=0.5, fx=fx)
+    a = depth_artefacts(z, rgb, np.random.default_rng(1), **art)
+    b = depth_artefacts(z, rgb, np.random.default_rng(1), **art)
+    c = depth_artefacts(z, rgb, np.random.default_rng(2), **art)
+    assert np.array_equal(a, b, equal_nan=True) and not np.array_equal(a, c, equal_nan=True)
+    # The drawn world carries them, zero by default.
+    w = RealismConfig(depth_holes=0.01, flying_pixels=0.3).draw(0, 3)
+    assert w.depth_holes == 0.01 and w.flying_pixels == 0.3 and w.depth_artefacts
+    assert not RealismConfig().draw(0, 3).depth_artefacts
+
+
+def test_holes_fall_where_the_right_imager_cannot_see_and_flying_pixels_between_two_depths():
+    z, rgb, fx = _block_on_table()
+    # Holes: the table just left of the block is hidden from the right imager over the
+    # disparity step f B (1/z_top - 1/z_table) (1.46 px here); the rest at the share asked.
+    holes = depth_artefacts(z, rgb, np.random.default_rng(3), holes=1e-6, fx=fx)
+    step = fx * D435_BASELINE * (1 / 0.77 - 1 / 0.8)
+    hidden = np.isnan(holes)
+    assert hidden[40:80, 60 - int(step) : 60].all() and not hidden[40:80, 60 - int(np.ceil(step)) - 1].any()
+    assert not hidden[40:80, 100:].any() and not hidden[:, :55][np.r_[0:40, 80:120]].any()
+    white, dark = np.full_like(rgb, 255), np.full_like(rgb, 40)
+    many = depth_artefacts(z, white, np.random.default_rng(3), holes=0.05, fx=fx)
+    assert 0.04 < np.isnan(many[:30, :50]).mean() < 0.06  # bright flat table: the share itself
+    darker = depth_artefacts(z, dark, np.random.default_rng(3), holes=0.05, fx=fx)
+    assert 3 * 0.05 < np.isnan(darker[:30, :50]).mean() < 4 * 0.05  # 1 + HOLE_DARK (1 - 40 / 255)
+    # Flying pixels: only on either side of the block's edge, between its depth and the table's.
+    fly = depth_artefacts(z, rgb, np.random.default_rng(4), flying=1.0, fx=fx)
+    moved = fly != z
+    edge = np.zeros(z.shape, bool)
+    edge[39:81, 59:101] = True
+    edge[41:79, 61:99] = False
+    assert moved.any() and not (moved & ~edge).any()
+    assert np.all((fly[moved] >= 0.77) & (fly[moved] <= 0.8)) and FLY_JUMP < 0.03
 
 
 def test_realism_settings_are_checked_at_load(tmp_path):
@@ -67,16 +121,28 @@ def test_the_station_builds_the_drawn_world_and_the_planner_sees_only_perception
     w = REAL.draw(2, 6)
     ctx = d.CreateDefaultContext()
     pc = h.plant.GetMyContextFromRoot(ctx)
+    inspector = h.scene_graph.model_inspector()
     for i, body in h.bodies.items():
-        nominal = h.scene.shape(i).density * h.scene.shape(i).area * h.scene.shape(i).height
-        assert body.get_mass(pc) == pytest.approx(nominal * w.mass[i], rel=1e-6)
+        shape = h.scene.shape(i)
+        grown = shapely.Polygon(shape.vertices).buffer(w.size_offset[i], join_style="mitre").area
+        assert body.get_mass(pc) == pytest.approx(shape.density * grown * shape.height * w.mass[i], rel=1e-6)
+        # The camera sees it at its own pose error; collision and Meshcat where it is.
+        frame = h.plant.GetBodyFrameIdOrThrow(body.index())
+        seen = inspector.GetGeometries(frame, Role.kPerception)
+        shown = inspector.GetGeometries(frame, Role.kIllustration)
+        X = inspector.GetPoseInFrame(seen[0])
+        assert len(seen) == len(shown) == 1 and seen != shown
+        assert np.allclose([*X.translation()[:2], RollPitchYaw(X.rotation()).yaw_angle()], w.pose_offset[i])
+        assert inspector.GetPoseInFrame(shown[0]).IsExactlyIdentity()
+    finger = h.plant.GetJointActuatorByName("left_finger_motor", h.robot)
+    assert finger.effort_limit() == pytest.approx(sc.gripper.force_limit * w.grip_force)
     # Depth noise: the same image twice is the same; at another time it is not.
     d1 = render_still(sc, d, ctx)[1].copy()
     d2 = render_still(sc, d, ctx)[1].copy()
-    assert np.array_equal(d1, d2)
+    assert np.array_equal(d1, d2, equal_nan=True)
     ctx.SetTime(1.0)
     d3 = render_still(sc, d, ctx)[1].copy()
-    diff = (d3 - d1)[np.isfinite(d1)]
+    diff = (d3 - d1)[np.isfinite(d1) & np.isfinite(d3)]
     assert 0.002 < np.std(diff) / np.sqrt(2) < 0.0035
     # Structure: the planner's one input is perception's scene; its physics check is the
     # scenario's nominal model, not the station's world.
@@ -86,7 +152,7 @@ def test_the_station_builds_the_drawn_world_and_the_planner_sees_only_perception
     ((src, port),) = [v for (dst, _), v in diagram.connection_map().items() if dst is planner]
     assert src is parts["perception"] and src.get_output_port(port).get_name() == "scene"
     check = make_planner(sc).verifier
-    assert check.objects is None and check.config == sc.verifier
+    assert check.objects is None and check.config == sc.verifier and check.physics == sc.gripper
 
 
 def _off_centre_grasp():
@@ -132,6 +198,26 @@ def test_perception_on_the_realistic_cell_reports_the_calibration_as_one_shared_
     assert 1.0 < real["shift_mm"] < 6.0 and real["fit_mm"] < 0.6
     (ideal,) = bench_perception(1, 0, repeats=1)
     assert ideal["shift_mm"] < 0.3 and ideal["pos_max_mm"] < 1.0
+
+
+@pytest.mark.parametrize("height,levels", [(0.8, (2.0, 4.0)), (1.2, (1.0,))])
+def test_perception_invents_nothing_on_noisy_depth_with_holes_and_flying_pixels(tmp_path, height, levels):
+    """The realistic cell's table 0 with holes and flying pixels, its depth noise at twice and
+    four times the D435's, and the camera at 1.2 m (the noise grows with the square of the
+    distance, and each pixel covers 1.9 mm): colour tells the table from the objects, so noise
+    never makes an object; at 2x every object is found, each fit within 3 mm."""
+    from mog_drake.experiments.bench.station import bench_perception
+
+    f = tmp_path / "artefacts.yaml"
+    f.write_text(
+        "realism: {camera_offset: 0.0015, camera_tilt_deg: 0.1, depth_holes: 0.01, flying_pixels: 0.3}\n"
+        "perception: {fit_table: true}\n"
+    )
+    rows = bench_perception(1, 0, repeats=1, scenario=str(f), noise_levels=levels, camera_height=height)
+    assert all(r["extra"] == 0 for r in rows)
+    first = rows[0]
+    assert first["found"] == 33 and first["missed"] == first["unrecognised"] == 0
+    assert first["fit_max_mm"] < 3.0
 
 
 def test_the_last_resort_takes_a_nominal_grasp_when_no_robust_one_is_left():

@@ -366,10 +366,11 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     assert s.finished == "gave_up"
     assert len(s.attempts) == MAX_MISSES  # not one more
     assert excluded[:MAX_MISSES] == [[]] * MAX_MISSES and excluded[-1] == [0]
-    # The object was never taken: it is still on the table, where it was.
+    # The object was never taken: it is still on the table, near where it was (jaws closing
+    # 6 cm beside it nudge it, by 2-4 cm over the three misses).
     plant = parts["handles"].plant
     p = plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(ctx), parts["handles"].bodies[0]).translation()
-    assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.03 and p[2] < 0.01
+    assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.06 and abs(p[2]) < 0.01
 
 
 def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in_its_latency():

@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from mog_drake.errors import MogError
+from mog_drake.files import model_path
 
-REFERENCE_FILE = Path(__file__).resolve().parents[3] / "models" / "reference_check.yaml"
+REFERENCE_FILE = model_path("reference_check.yaml")
 ROW_CLASSES = range(2, 8)
 
 

@@ -12,77 +12,123 @@ PERCEPTION_REPEATS = 3
 
 
 def bench_perception(
-    tables: int = 5, seed: int = 0, toppled: int = 0, repeats: int = PERCEPTION_REPEATS, scenario=None
+    tables: int = 5,
+    seed: int = 0,
+    toppled: int = 0,
+    repeats: int = PERCEPTION_REPEATS,
+    scenario=None,
+    noise_levels=None,
+    camera_height: float | None = None,
 ) -> list[dict]:
     """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
-    objects found, missed and extra, median and worst position (mm) and yaw error (deg, modulo
-    the shape's symmetry), and wall time per image: ``time_s`` the median of ``repeats``
-    perceptions of the image (the steady state of a camera feeding frames; one run alone
-    varies by tens of percent on a shared machine), ``first_s`` the first of them (cold
+    objects found, missed and extra, unrecognised blobs, median and worst position (mm) and yaw
+    error (deg, modulo the shape's symmetry), and wall time per image: ``time_s`` the median of
+    ``repeats`` perceptions of the image (the steady state of a camera feeding frames; one run
+    alone varies by tens of percent on a shared machine), ``first_s`` the first of them (cold
     caches). ``toppled`` bars per table are laid on their side before rendering (the pose a
     knocked-over bar takes). ``scenario``: a scenario file whose camera, perception and world
     (realism) are used, e.g. models/realistic.yaml; ``shift_mm`` is then the error every object
-    shares (the mean offset: the camera's calibration), ``fit_mm`` the median of the rest."""
+    shares (the median offset: the camera's calibration), ``fit_mm`` the median of the rest and
+    ``fit_max_mm`` the worst. ``noise_levels``: depth noise levels (times the D435's RMS) to run
+    each table at, in place of the scenario's (one row per level and table; the table is
+    rendered once and each level's depth made from it as the station makes it:
+    `realism.depth_artefacts`). ``camera_height`` (m): the camera's height above the table, in
+    place of the scenario's."""
     from dataclasses import replace
 
     from mog_drake.camera import camera_pose
-    from mog_drake.perception import pose_errors
     from mog_drake.scenario import ClutteredScene, load_scenario
+    from mog_drake.sim.realism import depth_artefacts
+
+    base = load_scenario(scenario)
+    if camera_height is not None:
+        if not 0.3 <= camera_height <= 3.0:
+            raise MogError(f"--camera-height must be in [0.3, 3] m, got {camera_height}")
+        base.camera.X_PB.translation = [*base.camera.X_PB.translation[:2], camera_height]
+    levels = [base.realism.depth_noise] if noise_levels is None else list(noise_levels)
+    rows = []
+    for k in range(seed, seed + tables):
+        sc = replace(base, scene=ClutteredScene(seed=k))
+        # Rendered clean; each level's depth made from it below.
+        quiet = replace(sc.realism, depth_noise=0.0, depth_holes=0.0, flying_pixels=0.0)
+        rgb, clean, truth, K = _render_table(replace(sc, realism=quiet), k, toppled)
+        world = sc.realism.draw(k, len(truth.scene))
+        perceiver = sc.perceiver()
+        for level in levels:
+            depth = depth_artefacts(
+                clean,
+                rgb,
+                world.depth_rng(0.0),
+                noise=level,
+                holes=world.depth_holes,
+                flying=world.flying_pixels,
+                fx=K[0],
+            )
+            times = []
+            for _ in range(max(repeats, 1)):
+                t = time.perf_counter()
+                seen = perceiver.perceive(rgb, depth, camera_pose(sc.camera), K)
+                times.append(time.perf_counter() - t)
+            row = {"noise": level, "table_seed": k, "objects": len(truth.scene), "toppled": truth.laid}
+            rows.append(
+                {**row, **_scores(seen, truth.scene), "time_s": float(np.median(times)), "first_s": times[0]}
+            )
+    return rows
+
+
+class _Rendered:
+    def __init__(self, scene, laid):
+        self.scene, self.laid = scene, laid
+
+
+def _render_table(sc, k: int, toppled: int):
+    """(rgb, depth, truth, intrinsics) of table ``k`` as the station of ``sc`` renders it,
+    ``toppled`` of its bars laid on their side."""
     from mog_drake.scenes import Scene, SceneObject, cluttered_scene, default_library
     from mog_drake.station import MakeStation, render_still
 
-    base = load_scenario(scenario)
-    rows = []
-    for k in range(seed, seed + tables):
-        scene = cluttered_scene(np.random.default_rng(k))
-        laid = 0
-        for i, o in enumerate(scene.objects):
-            if laid >= toppled or o.shape not in ("thin_bar", "thick_bar"):
-                continue
-            objs = list(scene.objects)
-            objs[i] = SceneObject(f"{o.shape}:on_side", o.x, o.y, o.theta)
-            try:  # a toppled bar's wider footprint must not overlap a neighbour
-                scene = Scene(objs, default_library(), table=scene.table).validate()
-                laid += 1
-            except MogError:
-                pass
-        sc = replace(base, scene=ClutteredScene(seed=k))
-        d, h = MakeStation(sc, scene)
-        rgb, depth = render_still(sc, d)
-        perceiver = sc.perceiver()
-        times = []
-        for _ in range(max(repeats, 1)):
-            t = time.perf_counter()
-            seen = perceiver.perceive(rgb, depth, camera_pose(sc.camera), h.camera_intrinsics)
-            times.append(time.perf_counter() - t)
-        errs = pose_errors(seen, h.scene)
-        found = [e for e in errs if e["object"] is not None and e["position"] is not None]
-        pos = 1e3 * np.array([e["position"] for e in found])
-        yaw = np.degrees([e["yaw"] for e in found])
-        offsets = np.array([e["offset"] for e in found]).reshape(-1, 2)
-        shift = offsets.mean(axis=0) if len(found) else np.full(2, np.nan)
-        rows.append(
-            {
-                "table_seed": k,
-                "objects": len(h.scene),
-                "toppled": laid,
-                "found": len(found),
-                "missed": sum(e["object"] is not None and e["position"] is None for e in errs),
-                "extra": sum(bool(e.get("extra")) for e in errs),
-                "unrecognised": seen.meta["unrecognised_blobs"],
-                "pos_median_mm": float(np.median(pos)) if len(pos) else float("nan"),
-                "pos_max_mm": float(pos.max()) if len(pos) else float("nan"),
-                "shift_mm": 1e3 * float(np.linalg.norm(shift)),
-                "fit_mm": 1e3 * float(np.median(np.linalg.norm(offsets - shift, axis=1)))
-                if len(found)
-                else float("nan"),
-                "yaw_median_deg": float(np.median(yaw)) if len(yaw) else float("nan"),
-                "yaw_max_deg": float(yaw.max()) if len(yaw) else float("nan"),
-                "time_s": float(np.median(times)),
-                "first_s": times[0],
-            }
-        )
-    return rows
+    scene = cluttered_scene(np.random.default_rng(k))
+    laid = 0
+    for i, o in enumerate(scene.objects):
+        if laid >= toppled or o.shape not in ("thin_bar", "thick_bar"):
+            continue
+        objs = list(scene.objects)
+        objs[i] = SceneObject(f"{o.shape}:on_side", o.x, o.y, o.theta)
+        try:  # a toppled bar's wider footprint must not overlap a neighbour
+            scene = Scene(objs, default_library(), table=scene.table).validate()
+            laid += 1
+        except MogError:
+            pass
+    d, h = MakeStation(sc, scene)
+    rgb, depth = render_still(sc, d)
+    return np.array(rgb), np.array(depth), _Rendered(h.scene, laid), h.camera_intrinsics
+
+
+def _scores(seen, truth) -> dict:
+    """The perceived scene ``seen`` against ``truth``: counts and errors (mm, deg)."""
+    from mog_drake.perception import pose_errors
+
+    errs = pose_errors(seen, truth)
+    found = [e for e in errs if e["object"] is not None and e["position"] is not None]
+    pos = 1e3 * np.array([e["position"] for e in found])
+    yaw = np.degrees([e["yaw"] for e in found])
+    offsets = np.array([e["offset"] for e in found]).reshape(-1, 2)
+    shift = np.median(offsets, axis=0) if len(found) else np.full(2, np.nan)
+    fit = 1e3 * np.linalg.norm(offsets - shift, axis=1)
+    nan = float("nan")
+    return {
+        "found": len(found),
+        "missed": sum(e["object"] is not None and e["position"] is None for e in errs),
+        "extra": sum(bool(e.get("extra")) for e in errs),
+        "unrecognised": seen.meta["unrecognised_blobs"],
+        "pos_median_mm": float(np.median(pos)) if len(pos) else nan,
+        "pos_max_mm": float(pos.max()) if len(pos) else nan,
+        "shift_mm": 1e3 * float(np.linalg.norm(shift)),
+        "fit_mm": float(np.median(fit)) if len(found) else nan,
+        "fit_max_mm": float(fit.max()) if len(found) else nan,
+        "yaw_median_deg": float(np.median(yaw)) if len(yaw) else nan,
+        "yaw_max_deg": float(yaw.max()) if len(yaw) else nan,
+    }
 
 
 def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:

@@ -1,0 +1,97 @@
+"""Benchmarks that print tables. Speed is shown here, never asserted in tests.
+
+`run(what, ...)` returns (doc, text) for `mog-drake bench WHAT`:
+
+* geometry: the conditions and the candidate filter (`bench.geometry`)
+* verifier: the picking check against the reference check, pair by pair (`bench.physics`)
+* perception, station, replanning, rest: rendered tables, the station's step (and where a
+  pick run's CPU goes, `bench.cell`), replanning, objects at rest on the station's table
+  (`bench.station`)
+"""
+
+from __future__ import annotations
+
+import statistics
+
+from mog_drake.tables import format_table
+
+BENCHES = ("geometry", "verifier", "perception", "station", "replanning", "rest")
+
+
+def run(
+    what: str,
+    scenes: int = 20,
+    seed: int = 0,
+    toppled: int = 0,
+    progress: bool = True,
+    tables: int = 3,
+    out=None,
+    scenario: str | None = None,
+    mode: str | None = None,
+) -> tuple[dict, str]:
+    """Runs one benchmark; returns its document and its table as text."""
+    from mog_drake.progress import Progress
+
+    if what == "geometry":
+        from mog_drake.experiments.bench.geometry import bench_geometry
+
+        rows = bench_geometry(scenes, seed)
+    elif what == "verifier":
+        from mog_drake.experiments.bench.physics import bench_verifier, verifier_text
+
+        bar = Progress(1, what, enabled=progress)
+        doc = bench_verifier(scenes, tables, seed, out, progress=bar)
+        bar.close()
+        return doc, verifier_text(doc)
+    elif what == "perception":
+        from mog_drake.experiments.bench.station import bench_perception
+
+        rows = bench_perception(scenes, seed, toppled, scenario=scenario)
+        t = [r["time_s"] for r in rows]
+        text = format_table(rows) + (
+            f"\nper image: median {statistics.median(t):.3f} s, worst {max(t):.3f} s; "
+            f"found {sum(r['found'] for r in rows)}, missed {sum(r['missed'] for r in rows)}, "
+            f"extra {sum(r['extra'] for r in rows)}; worst position {max(r['pos_max_mm'] for r in rows):.2f} mm, "
+            f"worst yaw {max(r['yaw_max_deg'] for r in rows):.2f} deg; the shift all objects share "
+            f"{statistics.median(r['shift_mm'] for r in rows):.2f} mm (median table), each one's fit "
+            f"{statistics.median(r['fit_mm'] for r in rows):.2f} mm"
+        )
+        return {what: rows}, text
+    elif what == "station":
+        from mog_drake.experiments.bench.cell import bench_cell, cell_text
+        from mog_drake.experiments.bench.station import bench_station
+
+        rows = bench_station(seed)
+        before = bench_cell(seed, period=0.05)  # v17 looked every 0.05 s (with a 2 m/s reach)
+        cell = bench_cell(seed)
+        return {what: rows, "cell": cell, "cell_before": before}, format_table(rows) + "\n" + cell_text(
+            cell, before
+        )
+    elif what == "replanning":
+        from mog_drake.experiments.bench.station import FREE_PLANNING_S, bench_replanning
+
+        bar = Progress(2 * scenes, "replanning", enabled=progress)
+        rows = bench_replanning(scenes, seed, bar, scenario, mode)
+        past = f"cpu_past_{FREE_PLANNING_S:g}s"
+        sums = {}
+        for r in rows:
+            s = sums.setdefault(r["large groups"], dict.fromkeys(("cpu_s", "first_s", past, "decisions"), 0))
+            for k in s:
+                s[k] += r[k]
+        return {what: rows}, format_table(rows) + "\nall tables, groups of three or more with: " + "; ".join(
+            f"{k} {s['cpu_s']:.1f} s of planning CPU ({s['first_s']:.1f} in first decisions, "
+            f"{s[past]:.1f} past the free time), {s['decisions']} decisions"
+            for k, s in sums.items()
+        )
+    elif what == "rest":
+        from mog_drake.experiments.bench.station import bench_rest, rest_text
+
+        bar = Progress(scenes, what, enabled=progress)
+        doc = bench_rest(scenes, seed, progress=bar)
+        bar.close()
+        return doc, rest_text(doc)
+    else:
+        from mog_drake.errors import MogError
+
+        raise MogError(f"unknown benchmark {what!r} (known: {', '.join(BENCHES)})")
+    return {what: rows}, format_table(rows)

@@ -1,0 +1,312 @@
+"""One step of the picking algorithm (paper Alg. 1, Sec. 6.1), and its single-object baseline.
+
+    obj_groups        <- CreateObjGroups(x)
+    ranked_obj_groups <- RankObjGroups(obj_groups)
+    for obj_group in ranked_obj_groups:
+        u <- GraspPlanner(x, obj_group)
+        if u != {}: execute u; break
+
+The outer loop (observe, execute, repeat until the table is clear or time is up) is the
+Planner and Controller systems' job; this module decides the next grasp for one observation.
+
+Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`:
+
+* grouping "conditions": groups formed from the grasps that satisfy the necessary
+  conditions (`condition_groups`) instead of CreateObjGroups' radius.
+* partial lifts (mog): a candidate the physics check saw lift only k objects of a larger
+  group is a verified grasp of those k. Once every group left has at most k objects it is
+  taken instead of planning them, and rather than giving up when no group succeeds.
+* avoid: the robot's last few grasps are not tried again, so a grasp the check trusts and
+  the world keeps failing is not repeated attempt after attempt.
+* failures (memory): a group found to have no grasp is not planned again while every object
+  within its reach lies where it did; its remembered plan, partial lift included, stands in.
+* last resort: when no group has a grasp within the planner's cap on physics checks, each is
+  planned again with up to LAST_RESORT_CHECKS more (LAST_RESORT_TOTAL in all) before the
+  decision gives up ("no_grasp").
+* unrecognised blobs: once no library object is left, what perception could not recognise
+  (a prism knocked onto its side) is planned as prisms of its outline and top height
+  (`unrecognised_scene`); without a grasp the status is "unrecognised".
+* push-mog: grasps are planned for Alg. 1's groups and for groups of objects that meet within
+  ADJACENT_GAP (a push leaves two bars end to end, farther apart than the group radius), and
+  a push is taken when worth more (`mog_drake.planning.pushing`).
+* exclude: no group holding an object given up on (`tally_misses`) is planned; when they are
+  all that is left, the status is "gave_up".
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from mog_drake.errors import MogError
+from mog_drake.geometry import ranked_groups
+from mog_drake.geometry.groups import adjacent_groups
+from mog_drake.geometry.polygon import polygon_area, polygon_centroid
+from mog_drake.geometry.push import PUSH_GAP
+from mog_drake.planning.config import PlannerSpec
+from mog_drake.planning.decision import (
+    MEMORY_SIZE,
+    FailedGroup,
+    FailedPush,
+    PaidPush,
+    PickDecision,
+    _around,
+    _recall,
+)
+from mog_drake.planning.planner import GraspPlanner
+from mog_drake.planning.pushing import _consider_pushes, lone_reason
+from mog_drake.scenes import Scene, SceneObject, make_shape
+
+# Before a decision gives up ("no_grasp": the run would end with objects on the table), every
+# group is planned again with this many more physics checks, going on where its capped plan
+# stopped (an extension; see next_pick's ``last_resort``).
+LAST_RESORT_CHECKS = 12
+LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
+# An object the robot grasped this many times without taking it (it was still on the table
+# within MISS_RADIUS of where it was, and the grasp took none of its targets) is given up
+# on: a grasp that the physics check trusts and the world keeps failing (a pose perceived
+# wrong, something the check does not model) would otherwise be tried until the time limit.
+MAX_MISSES = 3
+MISS_RADIUS = 0.03  # m: a failed grasp nudges its object; a taken one leaves nothing here
+# push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
+# between them, and the pushed object may turn a little as it stops).
+ADJACENT_GAP = PUSH_GAP + 0.004  # m
+
+
+def next_pick(
+    scene,
+    planner: GraspPlanner,
+    spec: PlannerSpec | None = None,
+    rng: np.random.Generator | None = None,
+    avoid=(),
+    failures: tuple[FailedGroup | FailedPush | PaidPush, ...] | None = None,
+    grasp_unrecognised: bool = True,
+    pushes_left: int = 0,
+    adjacent: float = 0.0,
+    exclude=(),
+) -> PickDecision:
+    """The next grasp for the objects of ``scene``, as ``spec`` (`PlannerSpec`, its defaults
+    when None) says, with the given grasp planner: mode "mog" is Alg. 1 (the largest groups
+    first), "sog" the paper's single-object baseline (objects in a random order until one has
+    a grasp), "push-mog" Alg. 1 or a consolidating push worth more (at most ``pushes_left``
+    more). The extensions, each described in the module's docstring: ``avoid`` (grasps not
+    to try again), ``failures`` (the previous decision's memory; None: off),
+    ``grasp_unrecognised``, ``adjacent`` (push-mog's groups of objects that meet),
+    ``exclude`` (objects given up on: `tally_misses`), and the spec's ``partial_lifts`` and
+    ``last_resort``."""
+    spec = spec or PlannerSpec()
+    spec.check()
+    if spec.mode == "push-mog":
+        return _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude)
+    mode, last_resort = spec.mode, spec.loop.last_resort
+    t0 = time.perf_counter()
+    if len(scene) == 0:
+        return _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0)
+    if mode == "mog":
+        groups = _mog_groups(scene, planner, spec, adjacent)
+    else:
+        if rng is None:
+            raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
+        groups = [(int(i),) for i in rng.permutation(len(scene))]
+    if len(exclude):
+        groups = _excluding(groups, exclude)
+        if not groups:
+            return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
+    partial_lifts = spec.loop.partial_lifts and mode == "mog"
+    decision = PickDecision("no_grasp")
+    best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
+    pending = list(failures or ())  # remembered failures not yet met in this scene
+    seen: list[FailedGroup] = []
+    for group in groups:
+        if partial_lifts and best is not None and len(best[1]) >= len(group):
+            break
+        res = around = None
+        if failures is not None:
+            around = _around(scene, group, planner.gripper)
+            res = _recall(pending, group, around, avoid)
+            decision.remembered += res is not None
+        if res is None:
+            res = planner.plan(scene, group, rng=rng, avoid=avoid)
+        if failures is not None and not res.found:
+            seen.append(FailedGroup(tuple(res.group), around, res))
+        decision.plans.append(res)
+        decision.groups_tried += 1
+        decision.physics_checks += res.tested
+        if res.found:
+            decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+            decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
+            break
+        if res.best_lift is not None and (best is None or len(res.best_lift[1]) > len(best[1])):
+            best = res.best_lift
+    if decision.status != "grasp" and partial_lifts and best is not None:
+        decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
+        decision.partial, decision.expected = True, tuple(best[1])
+    if decision.status != "grasp" and last_resort and planner.config.max_physics:
+        _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
+    if failures is not None:
+        decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
+    decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
+    decision.planning_time = time.perf_counter() - t0
+    return decision
+
+
+def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
+    """push-mog: Alg. 1's decision on its groups and the adjacent ones, then the pushes worth
+    more than it (`_consider_pushes`)."""
+    d = next_pick(
+        scene,
+        planner,
+        replace(spec, mode="mog"),
+        rng,
+        avoid,
+        failures,
+        grasp_unrecognised,
+        adjacent=ADJACENT_GAP,
+        exclude=exclude,
+    )
+    if (
+        pushes_left > 0
+        and spec.pushes.checks > 0
+        and not d.unrecognised
+        and d.status in ("grasp", "no_grasp")
+    ):
+        _consider_pushes(scene, planner, spec, d, rng, avoid, failures)
+    d.lone = lone_reason(scene, planner, spec, d, pushes_left)
+    return d
+
+
+def _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0) -> PickDecision:
+    """No library object left: a clear table, or the unrecognised blobs planned as prisms.
+    (Something the perception could not recognise is not a clear table.)"""
+    blobs = unrecognised_scene(scene) if grasp_unrecognised else None
+    if not blobs:
+        status = "unrecognised" if scene.meta.get("unrecognised_blobs", 0) else "table_clear"
+        return PickDecision(status, planning_time=time.perf_counter() - t0)
+    d = next_pick(blobs, planner, spec, rng, avoid, failures)
+    d.unrecognised = True
+    if d.status != "grasp":
+        d.status = "unrecognised"
+    return d
+
+
+def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float) -> list[tuple[int, ...]]:
+    """Alg. 1's groups of ``scene`` (``spec.loop.grouping``), largest first; with ``adjacent``
+    above 0 (push-mog), the groups of objects that meet within it too."""
+    polys = scene.polygons()
+    groups = ranked_groups(polys, planner.gripper, spec.loop.grouping, spec.loop.group_radius)
+    if adjacent > 0:
+        more = [g for g in adjacent_groups(polys, adjacent, planner.gripper.w_g) if g not in groups]
+        groups = sorted(groups + more, key=lambda g: -len(g))
+    return groups
+
+
+def _excluding(groups: list, exclude) -> list:
+    excluded = {int(i) for i in exclude}
+    return [g for g in groups if not excluded.intersection(g)]
+
+
+def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]]:
+    """Failed grasps per object, across images whose object ids differ.
+
+    ``misses``: ((shape, x, y, count), ...) as of the last image; ``targets``: ((shape, x, y),
+    ...), the objects the grasp executed since meant to take; ``scene``: the new image. An
+    object is found again as the nearest one of its shape within MISS_RADIUS of where it
+    was. If every target is found again, the grasp took none of them: each one's count goes
+    up by one. Entries not found again are dropped (taken, or moved far).
+
+    Returns the new misses (at the objects' new positions) and the ids, in ``scene``, of the
+    objects grasped MAX_MISSES times in vain."""
+    objects = [(o.shape, float(o.x), float(o.y)) for o in scene.objects]
+
+    def found(entries) -> list[int | None]:
+        """Each (shape, x, y, ...) entry's object in ``scene``, or None; nearest first, an
+        object taken once."""
+        pairs = sorted(
+            (float(np.hypot(x - e[1], y - e[2])), k, i)
+            for k, e in enumerate(entries)
+            for i, (shape, x, y) in enumerate(objects)
+            if shape == e[0] and np.hypot(x - e[1], y - e[2]) <= MISS_RADIUS
+        )
+        out: list[int | None] = [None] * len(entries)
+        used = set()
+        for _, k, i in pairs:
+            if out[k] is None and i not in used:
+                out[k] = i
+                used.add(i)
+        return out
+
+    counts = {i: e[3] for e, i in zip(misses, found(misses), strict=True) if i is not None}
+    hits = found(targets)
+    if targets and all(i is not None for i in hits):
+        for i in hits:
+            counts[i] = counts.get(i, 0) + 1
+    new = tuple(
+        (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), n)
+        for i, n in sorted(counts.items())
+    )
+    return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
+
+
+def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
+    """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
+    skipping the candidates already simulated (a remembered plan simulated none now); takes
+    the first grasp found, or with ``partial_lifts`` the first partial lift. A robust check
+    (`planning.robust`) is relaxed to its nominal one here."""
+    deeper = copy.copy(planner)
+    deeper.verifier = getattr(planner.verifier, "nominal", planner.verifier)
+    spent = 0
+    for first in list(decision.plans):
+        if spent >= LAST_RESORT_TOTAL:
+            return
+        deeper.config = replace(
+            planner.config,
+            max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent),
+            max_physics_large=None,
+        )
+        res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=first.tested_indices)
+        decision.plans.append(res)
+        decision.groups_tried += 1
+        decision.physics_checks += res.tested
+        spent += res.tested
+        if res.found:
+            decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+            decision.expected = tuple(res.result.lifted)
+            decision.last_resort = True
+            return
+        if partial_lifts and res.best_lift is not None:  # a verified grasp of part of the group
+            decision.status, decision.grasp, decision.group = (
+                "grasp",
+                res.best_lift[0],
+                tuple(res.best_lift[1]),
+            )
+            decision.partial, decision.expected, decision.last_resort = True, tuple(res.best_lift[1]), True
+            return
+
+
+def unrecognised_scene(scene) -> Scene:
+    """The unrecognised blobs of a perceived ``scene`` (``meta["unrecognised"]``) as objects:
+    each a prism of its outline, as tall as its top, of the library's usual density. A blob's
+    shape is named after its outline, so the verifier never mistakes one blob for another."""
+    shapes, objects = {}, []
+    for blob in scene.meta.get("unrecognised", ()):
+        v = np.asarray(blob["vertices"], dtype=float)
+        if len(v) < 3 or abs(polygon_area(v)) < 1e-8:  # an outline with no area
+            continue
+        top = max(float(blob["top"]), 0.005)
+        digest = hashlib.sha1(np.round(np.append(v.ravel(), top), 5).tobytes()).hexdigest()[:10]
+        name = f"unrecognised_{digest}"
+        c = polygon_centroid(v)
+        try:
+            shapes[name] = make_shape(
+                name,
+                {"vertices": (v - c).tolist(), "height": top, "density": 1000.0, "color": [0.5, 0.5, 0.5]},
+            )
+        except MogError:  # not a convex outline
+            continue
+        objects.append(SceneObject(name, float(c[0]), float(c[1]), 0.0))
+    library = replace(scene.library, shapes={**scene.library.shapes, **shapes})
+    return Scene(objects, library, table=scene.table)

@@ -1,0 +1,438 @@
+"""Configuration as data: everything a pick-and-place run depends on, one dataclass per concern.
+
+Each part's own config is nested as it is and passed straight to its builder: Drake's
+`MultibodyPlantConfig` (inside `ContactConfig`), `SimulatorConfig`, `CameraConfig` and
+`VisualizationConfig`, and the project's `PlannerSpec`, `PerceptionConfig`, `MotionConfig`,
+`ControllerConfig`, `GripperPhysics`. Variants are chosen by YAML tags, as in Drake's
+hardware_sim: ``scene: !RowScene {row_class: 3}``, ``hardware: {camera: !ReplaySource {dir:
+frames}}``. `load_scenario` reads a YAML file over the defaults with `yaml_load_typed`;
+`models/scenario.yaml` is generated from the defaults (``python -m mog_drake.scenario``) and
+lists every setting.
+
+World frame = table frame: origin at the centre of the table top, z up.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.systems.sensors import CameraConfig
+from pydrake.visualization import VisualizationConfig
+
+from mog_drake.camera import default_camera
+from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
+from mog_drake.errors import MogError
+from mog_drake.files import read_text
+from mog_drake.hardware.config import HardwareSpec, ReplaySource
+from mog_drake.perception import PerceptionConfig
+from mog_drake.planning.config import PlannerSpec
+from mog_drake.scenes.library import check_yaml
+from mog_drake.sim.models import ContactConfig, GripperPhysics
+from mog_drake.sim.realism import RealismConfig
+from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
+
+SCENARIO_YAML = Path(__file__).resolve().parents[1] / "models" / "scenario.yaml"
+# A scenario sets a few hundred values (models/scenario.yaml, every setting: about 250); many
+# more is a mistake that the typed loader would take seconds per 100 kB to refuse.
+MAX_SCENARIO_VALUES = 5000
+# m kept between the planner's open jaws (the authors' idealised plates, 95 mm across their
+# outer faces) and the bin's outer walls: room for the real fingers' links around the pads
+# and for where a grasp lands (perception's pose error is about 1 mm, the arm's a few).
+KEEP_OUT_MARGIN = 0.01
+
+
+# --- the objects on the table: one of three sources, chosen by tag -------------------------
+@dataclass
+class ClutteredScene:
+    """A seeded cluttered table drawn from an inventory (`scenes.cluttered_scene`)."""
+
+    seed: int = 0
+    inventory: str = "isrr33"
+    n_objects: int = 0  # 0: the whole inventory
+
+
+@dataclass
+class RowScene:
+    """One of the paper's row classes (`scenes.row_scene`), seeded."""
+
+    seed: int = 0
+    row_class: int = 3
+
+
+@dataclass
+class SceneFile:
+    """A scene YAML file (`mog-drake scene generate` writes them)."""
+
+    file: str = ""
+
+
+SceneSource = Union[ClutteredScene, RowScene, SceneFile]  # noqa: UP007
+# (No "from __future__ import annotations" here: yaml_dump_typed reads the field types.)
+
+
+@dataclass
+class RobotSpec:
+    # x, y, yaw of the UR5 base; yaw pi turns the DH zero pose (arm along -x) towards the table.
+    base: list[float] = field(default_factory=lambda: [-0.50, 0.0, 3.14159265])
+    # Observe pose (rad): the palm at (-0.33, 0, 0.35) m, outside the camera's view.
+    home: list[float] = field(default_factory=lambda: [-0.692, -2.413, 1.965, -1.122, -1.573, -2.262])
+    max_joint_speed: float = 3.14  # rad/s (the UR5 does 180 deg/s)
+    max_joint_acceleration: float = 3.14  # rad/s^2
+    # Horizontal distance from the base's axis within which the arm reaches a top-down grasp at
+    # the table (m). IK reaches 0.86 m in every direction over the table; 2 cm are kept for a
+    # grasp centred off its object. Perception reports no object whose centre lies beyond it.
+    reach: float = 0.84
+    kp: float = 4000.0
+    kd: float = 400.0
+
+
+@dataclass
+class BinSpec:
+    center: list[float] = field(default_factory=lambda: [-0.25, 0.38])
+    inner: list[float] = field(default_factory=lambda: [0.24, 0.18])
+    depth: float = 0.10
+    wall: float = 0.01
+
+    def footprint(self, margin: float = 0.0) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the bin's outside walls, grown by ``margin``."""
+        hx, hy = self.inner[0] / 2 + self.wall + margin, self.inner[1] / 2 + self.wall + margin
+        cx, cy = self.center
+        return (cx - hx, cx + hx, cy - hy, cy + hy)
+
+
+@dataclass
+class Scenario:
+    """Everything a pick-and-place run depends on. Defaults run with no file at all."""
+
+    scene: SceneSource = field(default_factory=ClutteredScene)
+    robot: RobotSpec = field(default_factory=RobotSpec)
+    bin: BinSpec = field(default_factory=BinSpec)
+    camera: CameraConfig = field(default_factory=default_camera)
+    # The world's contact: a real table has friction (0.3 here: laminate under wood or plastic).
+    # On the paper's near-frictionless table, objects squeezed out of a grasp slide off the
+    # table for good.
+    # Its contact surfaces are triangles: with polygons (one contact point per polygon) a bar
+    # lying on its side rested on too few points and buzzed for good at most spots of the
+    # table, and now and then the solver diverged (docs/physics.md, `bench rest`).
+    contact: ContactConfig = field(default_factory=lambda: contact_config(0.3, "triangle"))
+    # The physics check of the picking planner (`mog_drake.sim.verifier_config.VerifierConfig`).
+    verifier: VerifierConfig = field(default_factory=lambda: picking_check())
+    # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
+    # planner's physics check alike.
+    gripper: GripperPhysics = field(default_factory=lambda: GripperPhysics(coupled=True))
+    planner: PlannerSpec = field(default_factory=PlannerSpec)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    motion: MotionConfig = field(default_factory=MotionConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    # How long perception and planning take in simulated time: each job's measured wall time,
+    # or fixed times per stage (runs comparable across machines).
+    latency: LatencyConfig = field(default_factory=LatencyConfig)
+    # The simulated station's Simulator. Its target_realtime_rate stays 0: a real-time run is
+    # paced by the wall clock without catch-up (systems.pacer.WallClockPacer).
+    simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
+    # Meshcat (--meshcat, --record): the illustration geometry only.
+    visualization: VisualizationConfig = field(
+        default_factory=lambda: VisualizationConfig(
+            publish_proximity=False, publish_contacts=False, enable_alpha_sliders=False
+        )
+    )
+    # The perceived table (xmin, xmax, ymin, ymax): where perception looks for objects (within
+    # the arm's reach, robot.reach). The camera sees all of it; the table under it is larger.
+    table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.40, 0.40])
+    time_limit: float = 600.0  # s of simulated robot time
+    # The simulated station: objects at rest out of reach of the gripper and of anything
+    # moving leave the physics until something could reach them (`station.sleep`).
+    sleep: bool = True
+    # How the simulated world differs from the planner's model (`mog_drake.sim.realism`):
+    # nothing by default; models/realistic.yaml sets a real cell's calibration, sensing and
+    # parameter errors.
+    realism: RealismConfig = field(default_factory=RealismConfig)
+    hardware: HardwareSpec = field(default_factory=HardwareSpec)
+
+    def perception_ignore(self) -> list[tuple[float, float, float, float]]:
+        """Regions where perception looks for no object: the bin and 5 mm around it (the
+        camera sees the outside of its walls)."""
+        return [self.bin.footprint(0.005)]
+
+    def keep_out(self) -> list[tuple[float, float, float, float]]:
+        """Regions the planner's jaws and pushes stay out of: the bin's walls and KEEP_OUT_MARGIN
+        around them. The bin is taller than the jaws' reach down to the table, and the physics
+        check does not model it: a grasp whose open jaws would land on its wall passes that
+        check and then fails on the robot, again and again."""
+        return [self.bin.footprint(KEEP_OUT_MARGIN)]
+
+    def perception_reach(self) -> tuple[float, float, float]:
+        """(x, y, radius): the disc about the robot's base within which the arm reaches."""
+        bx, by, _ = self.robot.base
+        return (float(bx), float(by), float(self.robot.reach))
+
+    def perceiver(self, library=None):
+        """A Perceiver of this scenario's perceived table: its ignored regions and the arm's
+        reach (what the Perception system uses)."""
+        from mog_drake.perception import Perceiver
+
+        return Perceiver(
+            library,
+            config=self.perception,
+            table=self.table,
+            ignore=self.perception_ignore(),
+            reach=self.perception_reach(),
+        )
+
+
+# --- loading ----------------------------------------------------------------------------------
+def load_scenario(path: str | None = None) -> Scenario:
+    """The default scenario, overridden by a YAML file (keys as the dataclass fields)."""
+    if not path:
+        return Scenario()
+    return scenario_from_text(read_text(path, "scenario file"), str(path))
+
+
+def with_overrides(sc: Scenario, where: str = "", **given) -> Scenario:
+    """``sc`` with a run's overrides (None: keep): ``seed`` (the scene's and the planner's),
+    ``mode``, ``objects`` (a cluttered table), ``time_limit``, and on a hardware scenario only
+    ``robot_ip`` and ``dry_run``. ``where`` names ``sc`` in errors."""
+    seed, mode, objects = given.get("seed"), given.get("mode"), given.get("objects")
+    if seed is not None:
+        sc.scene = replace(sc.scene, seed=seed) if hasattr(sc.scene, "seed") else sc.scene
+        sc.planner = replace(sc.planner, seed=seed)
+    if mode:
+        sc.planner = replace(sc.planner, mode=mode)
+    if objects:
+        if not hasattr(sc.scene, "n_objects"):
+            raise MogError("--objects applies to a cluttered table (scene: !ClutteredScene)")
+        sc.scene = replace(sc.scene, n_objects=objects)
+    sc.time_limit = given.get("time_limit") or sc.time_limit
+    for key, flag in (("robot_ip", "--robot-ip"), ("dry_run", "--dry-run")):
+        if not given.get(key):
+            continue
+        if not sc.hardware.enabled:
+            raise MogError(
+                f"{flag} applies to a hardware scenario (hardware.enabled: true, e.g. models/hardware.yaml);"
+                f" {where or 'the default scenario'} is simulated"
+            )
+        sc.hardware = replace(sc.hardware, **{key: given[key]})
+    return sc
+
+
+def scenario_from_text(text: str, where: str = "scenario") -> Scenario:
+    """A scenario from YAML text (a file's contents), checked like ``load_scenario``."""
+    check_yaml(text, where, max_values=MAX_SCENARIO_VALUES)
+    if _empty(text):  # no keys (or comments only): every setting keeps its default
+        return Scenario()
+    try:
+        sc = yaml_load_typed(schema=Scenario, data=text, defaults=Scenario())
+    except Exception as e:  # Drake's loader raises RuntimeError, TypeError, ValueError, yaml's own
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+        key = _failing_key(text)
+        raise MogError(
+            f"{where}: {key + ': ' if key else ''}{lines[0] if lines else type(e).__name__}"
+        ) from None
+    try:
+        check_scenario(sc)
+    except MogError as e:
+        raise MogError(f"{where}: {e}") from None
+    return sc
+
+
+def _empty(text: str) -> bool:
+    """Whether YAML ``text`` holds no document, or only a null one."""
+    import yaml
+
+    try:
+        return all(
+            doc is None for doc in yaml.load_all(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        )
+    except yaml.YAMLError:
+        return False  # the typed loader names what is wrong
+
+
+def _failing_key(text: str) -> str:
+    """The dotted key whose value the typed loader refuses (its own errors do not name it):
+    each mapping entry is loaded alone, tags kept, descending into the one that fails."""
+    import yaml
+
+    def loads(node) -> bool:
+        try:
+            yaml_load_typed(schema=Scenario, data=yaml.serialize(node), defaults=Scenario())
+            return True
+        except Exception:
+            return False
+
+    try:
+        root = yaml.compose(text)
+    except yaml.YAMLError:
+        return ""
+    path, wrap, node = [], (lambda n: n), root
+    while isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            alone = yaml.MappingNode(node.tag, [(k, v)])
+            if not loads(wrap(alone)):
+                path.append(str(k.value))
+                wrap = (lambda w, t, kk: lambda n: w(yaml.MappingNode(t, [(kk, n)])))(wrap, node.tag, k)
+                node = v
+                break
+        else:
+            break
+    return ".".join(path)
+
+
+def scenario_yaml(scenario: Scenario | None = None) -> str:
+    """The scenario as YAML (every setting, variants tagged)."""
+    return yaml_dump_typed(scenario if scenario is not None else Scenario())
+
+
+def _finite_leaves(obj, path: str = ""):
+    """(key path, value) of every number in a config tree (dataclasses, Drake structs, lists)."""
+    if isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        return
+    if isinstance(obj, (int, float)):
+        yield path, obj
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            yield from _finite_leaves(v, f"{path}[{i}]")
+    elif isinstance(obj, np.ndarray):
+        for i, v in enumerate(obj.ravel()):
+            yield f"{path}[{i}]", float(v)
+    elif dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            yield from _finite_leaves(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name)
+    elif hasattr(type(obj), "__fields__"):  # a Drake config struct
+        for f in type(obj).__fields__:
+            yield from _finite_leaves(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name)
+
+
+def _in(sc_value, key: str, lo: float, hi: float, lo_open: bool = True) -> None:
+    ok = (lo < sc_value if lo_open else lo <= sc_value) and sc_value <= hi
+    if not ok:
+        left = "(" if lo_open else "["
+        raise MogError(f"{key} must be in {left}{lo:g}, {hi:g}], got {sc_value!r}")
+
+
+def _box(values, key: str, n: int) -> None:
+    if len(values) != n or any(values[i] >= values[i + 1] for i in range(0, n, 2)):
+        got = list(values) if len(values) <= 2 * n else f"{len(values):,} numbers"
+        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {got}")
+
+
+def _check_sources(sc: Scenario) -> None:
+    """The scene's and the replay camera's settings, each named."""
+    from mog_drake.scenes import ROW_CLASSES
+
+    s = sc.scene
+    if isinstance(s, (ClutteredScene, RowScene)) and not 0 <= s.seed < 2**63:
+        raise MogError(f"scene.seed must be a whole number >= 0, got {s.seed}")
+    if isinstance(s, ClutteredScene) and s.n_objects < 0:
+        raise MogError(f"scene.n_objects must be at least 0 (0: the whole inventory), got {s.n_objects}")
+    if isinstance(s, RowScene) and s.row_class not in ROW_CLASSES:
+        raise MogError(f"scene.row_class must be one of {sorted(ROW_CLASSES)}, got {s.row_class}")
+    if isinstance(s, SceneFile) and not s.file.strip():
+        raise MogError("scene.file must name a scene file (!SceneFile {file: my_scene.yaml})")
+    cam = sc.hardware.camera
+    if isinstance(cam, ReplaySource):
+        if not cam.dir.strip():
+            raise MogError("hardware.camera.dir must name a folder of recorded frames")
+        _in(cam.frame_period, "hardware.camera.frame_period (s)", 0, 1e9)
+
+
+def check_scenario(sc: Scenario) -> None:
+    """Refuses, at load, a setting that would fail only once the robot runs, or crash in the
+    physics: every number finite, and each in the range it means something in (the key named)."""
+    for key, v in _finite_leaves(sc):
+        if not math.isfinite(v):
+            raise MogError(f"{key} must be a finite number, got {v!r}")
+    sc.planner.check()
+    sc.realism.check()
+    if sc.realism.enabled and sc.hardware.enabled:
+        raise MogError("realism applies to the simulated cell; a hardware run meets the real one")
+    _check_sources(sc)
+    _in(sc.time_limit, "time_limit", 0, 1e6)
+    r = sc.robot
+    if len(r.base) != 3 or len(r.home) != 6:
+        raise MogError("robot.base must be [x, y, yaw] and robot.home six joint angles")
+    _in(r.reach, "robot.reach", 0, 2.0)
+    _in(r.max_joint_speed, "robot.max_joint_speed", 0, 2 * math.pi)
+    _in(r.max_joint_acceleration, "robot.max_joint_acceleration", 0, 40.0)
+    _in(r.kp, "robot.kp", 0, 1e7)
+    _in(r.kd, "robot.kd", 0, 1e6, lo_open=False)
+    _box(sc.table, "table", 4)
+    if any(abs(v) > 10 for v in sc.table):
+        raise MogError(f"table must lie within 10 m of the origin, got {list(sc.table)}")
+    b = sc.bin
+    if len(b.center) != 2 or len(b.inner) != 2 or min(b.inner) <= 0:
+        raise MogError("bin.center must be [x, y] and bin.inner two positive sizes")
+    _in(b.depth, "bin.depth", 0, 1.0)
+    _in(b.wall, "bin.wall", 0, 0.2)
+    c = sc.camera
+    for key in ("width", "height"):
+        _in(getattr(c, key), f"camera.{key}", 0, 8192)
+    if not 0 < c.z_near < c.z_far or not 0 < c.clipping_near < c.clipping_far:
+        raise MogError("camera: 0 < z_near < z_far and 0 < clipping_near < clipping_far")
+    g = sc.gripper
+    _in(g.force_limit, "gripper.force_limit (N)", 0, 1000)
+    _in(g.close_speed, "gripper.close_speed (m/s)", 0, 1.0)
+    _in(g.finger_height, "gripper.finger_height (m)", 0, 0.2)
+    sc.verifier.check()
+    for key, k in (("contact", sc.contact), ("verifier.contact", sc.verifier.contact)):
+        # A 5 ms step already missed 3 of the 4 successes a 2 ms step saw (docs/physics.md).
+        _in(k.plant.time_step, f"{key}.plant.time_step (s)", 0, 0.01)
+        _in(k.hydroelastic_modulus, f"{key}.hydroelastic_modulus (Pa)", 0, 1e12)
+        for mu in ("mu_object", "mu_finger", "mu_table"):
+            _in(getattr(k, mu), f"{key}.{mu}", 0, 10, lo_open=False)
+        if k.table_collision not in ("box", "halfspace"):
+            raise MogError(f"{key}.table_collision must be box or halfspace, got {k.table_collision!r}")
+        if k.plant.contact_surface_representation not in ("polygon", "triangle"):
+            raise MogError(
+                f"{key}.plant.contact_surface_representation must be polygon or triangle, "
+                f"got {k.plant.contact_surface_representation!r}"
+            )
+    ctl = sc.controller
+    _in(ctl.period, "controller.period (s)", 0, 1.0)
+    for key in ("close_margin", "open_time", "settle_time"):
+        _in(getattr(ctl, key), f"controller.{key} (s)", 0, 60, lo_open=False)
+    _in(sc.motion.carry_scale, "motion.carry_scale", 0, 1)
+    if sc.latency.mode not in LATENCY_MODES:
+        raise MogError(f"latency.mode must be one of {', '.join(LATENCY_MODES)}, got {sc.latency.mode!r}")
+    for key in ("perception_s", "planning_s"):
+        _in(getattr(sc.latency, key), f"latency.{key}", 0, 600, lo_open=False)
+    hw = sc.hardware
+    if not 1 <= hw.gripper_port <= 65535:
+        raise MogError(f"hardware.gripper_port must be a TCP port (1-65535), got {hw.gripper_port}")
+    _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
+    _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)
+    _in(hw.burst_window, "hardware.burst_window (s)", 0, 1.0)
+    _in(hw.stale_after, "hardware.stale_after (s)", 0, 10.0)
+    _in(hw.link_clearance, "hardware.link_clearance (m)", 0, 1.0, lo_open=False)
+    # Each a wait on the gripper: 0 would fault every request, and nothing may wait past 60 s.
+    _in(hw.gripper_timeout, "hardware.gripper_timeout (s)", 0, 20.0)
+    _in(hw.gripper_activation_timeout, "hardware.gripper_activation_timeout (s)", 0, 60.0)
+    _in(hw.gripper_move_timeout, "hardware.gripper_move_timeout (s)", 0, 60.0)
+    _box(hw.workspace, "hardware.workspace", 6)
+    if hw.link_box:
+        _box(hw.link_box, "hardware.link_box", 6)
+    if hw.enabled and sc.robot.max_joint_speed > hw.max_joint_speed:
+        # The driver refuses any target faster than its limit: such a run would fault at its
+        # first motion, with the arm already under way.
+        raise MogError(
+            f"robot.max_joint_speed {sc.robot.max_joint_speed:g} rad/s plans faster than "
+            f"hardware.max_joint_speed {hw.max_joint_speed:g} rad/s allows: lower the first"
+        )
+
+
+HEADER = """\
+# The default pick-and-place scenario: every setting, generated from mog_drake.scenario.Scenario
+# (python -m mog_drake.scenario); SI units. Copy it, keep what you change, run:
+#   mog-drake pick --scenario my.yaml
+# Omitted keys keep these values. Variants are chosen by YAML tag:
+#   scene: !ClutteredScene {...} (the default, written untagged), !RowScene {...}, !SceneFile {file: ...}
+#   hardware: {camera: !RealSenseSource {...} (the default), !ReplaySource {dir: ...}}
+"""
+
+if __name__ == "__main__":
+    SCENARIO_YAML.write_text(HEADER + scenario_yaml())
+    print(f"wrote {SCENARIO_YAML}")
