@@ -32,10 +32,15 @@ class Parser(argparse.ArgumentParser):
 
 def add_common(sp, scene: bool = True) -> None:
     """--json, --shapes and (``scene``) the scene file argument."""
-    sp.add_argument("--json", action="store_true", help="print one JSON document")
-    sp.add_argument("--shapes", action="append", metavar="FILE", help="extra shape library YAML (repeatable)")
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
+    sp.add_argument(
+        "--shapes",
+        action="append",
+        metavar="FILE",
+        help="shapes of your own, a YAML laid out like models/shapes.yaml (repeatable; default: the library alone)",
+    )
     if scene:
-        sp.add_argument("scene", help="scene YAML file")
+        sp.add_argument("scene", help="scene YAML file (`scene generate` writes them)")
 
 
 def library(args):

@@ -3,62 +3,121 @@
 from __future__ import annotations
 
 from mog_drake.cli.common import emit
+from mog_drake.cli.geometry import add_grid
 from mog_drake.experiments.bench import BENCHES
 from mog_drake.planning.config import MODES
 
 
 def add_sweep(sp) -> None:
     """What every sweep takes: its seed, folder, workers and output."""
-    sp.add_argument("--seed", type=int, default=0)
-    sp.add_argument("--out", required=True, help="output folder (resumes what it holds)")
-    sp.add_argument("--jobs", type=int, help="parallel processes (default: all cores)")
-    sp.add_argument("--ray", metavar="ADDRESS", help="run on an existing Ray cluster")
-    sp.add_argument("--json", action="store_true")
-    sp.add_argument("--summary-only", action="store_true", help="summarise what is done; run nothing")
+    sp.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="the sweep's seed, a whole number: its scenes' seeds follow from it (default: 0)",
+    )
+    sp.add_argument("--out", required=True, help="output folder; a sweep resumes what it holds")
+    sp.add_argument(
+        "--jobs",
+        type=int,
+        help="parallel processes on this machine (default: all cores). Picking sweeps take perception's and "
+        "planning's CPU time as their latency (latency.mode cpu, unless the scenario sets it), so their "
+        "results do not depend on the machine's load",
+    )
+    sp.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run on a Ray cluster instead: auto (this machine's) or HOST:PORT as `ray start --head` prints it "
+        "(default: none, the processes of --jobs)",
+    )
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
+    sp.add_argument(
+        "--summary-only", action="store_true", help="summarise what the folder holds; run nothing"
+    )
     sp.set_defaults(func=cmd_eval)
 
 
 def add_parsers(sub) -> None:
-    ev = sub.add_parser("eval", help="the paper's experiments").add_subparsers(
+    ev = sub.add_parser("eval", help="the paper's experiments, as resumable sweeps").add_subparsers(
         dest="experiment", required=True
     )
     for name, helptext in (
-        ("conditions", "necessary conditions vs physics (Sec. 7.2)"),
-        ("planner", "GP vs its baselines (Sec. 7.3)"),
+        ("conditions", "the necessary conditions against physics on row scenes (the paper's Sec. 7.2)"),
+        ("planner", "GP against its baselines on row scenes: time and physics checks (Sec. 7.3)"),
     ):
         sp = ev.add_parser(name, help=helptext)
         add_sweep(sp)
-        sp.add_argument("--classes", default="2-7", help="row classes, e.g. 2-7 or 2,4")
-        sp.add_argument("--scenes-per-class", type=int, default=50)
-        sp.add_argument("--positions", type=int, default=70, help="Np")
-        sp.add_argument("--orientations", type=int, default=7, help="Ntheta")
+        sp.add_argument(
+            "--classes", default="2-7", help="row classes (objects per row), e.g. 2-7 or 2,4 (default: 2-7)"
+        )
+        sp.add_argument(
+            "--scenes-per-class", type=int, default=50, help="seeded scenes per class (default: 50)"
+        )
+        add_grid(sp)
         if name == "planner":
-            sp.add_argument("--methods", default="gp,rand-phys,rank-phys,rand-fil-phys")
             sp.add_argument(
-                "--max-physics", type=int, help="cap physics checks per plan (speed-ups: lower bounds)"
+                "--methods",
+                default="gp,rand-phys,rank-phys,rand-fil-phys",
+                help="methods, comma-separated (default: gp,rand-phys,rank-phys,rand-fil-phys)",
             )
-    sp = ev.add_parser("picking", help="multi- vs single-object picking on cluttered tables (Table 1)")
+            sp.add_argument(
+                "--max-physics",
+                type=int,
+                help="cap the physics checks of each plan: the baselines' times become lower bounds (default: no cap)",
+            )
+    sp = ev.add_parser("picking", help="multi- against single-object picking on cluttered tables (Table 1)")
     add_sweep(sp)
-    sp.add_argument("--scenes", type=int, default=20)
-    sp.add_argument("--modes", default="mog,sog")
-    sp.add_argument("--objects", type=int, default=33, help="objects per table (the isrr33 inventory)")
-    sp.add_argument("--time-limit", type=float, default=900.0, help="simulated robot seconds per table")
+    sp.add_argument("--scenes", type=int, default=20, help="seeded tables (default: 20)")
     sp.add_argument(
-        "--scenario", help="scenario YAML every run uses (the sweep sets scene, time, mode, seed)"
+        "--modes", default="mog,sog", help="modes, comma-separated: mog, sog, push-mog (default: mog,sog)"
     )
-    sp.add_argument("--compare", metavar="DIR", help="another picking sweep's folder (A): paired differences")
+    sp.add_argument(
+        "--objects",
+        type=int,
+        default=33,
+        help="objects per table, 1-33 of the isrr33 inventory (default: 33)",
+    )
+    sp.add_argument(
+        "--time-limit", type=float, default=900.0, help="s of simulated robot time per table (default: 900)"
+    )
+    sp.add_argument(
+        "--scenario",
+        help="scenario YAML (or a shipped one's name) every run uses; the sweep sets its table, time limit, "
+        "mode and seed (default: the built-in one)",
+    )
+    sp.add_argument(
+        "--compare",
+        metavar="DIR",
+        help="another picking sweep's folder, the same tables: paired differences (default: none)",
+    )
 
-    sp = sub.add_parser("bench", help="benchmarks that print a table")
-    sp.add_argument("what", choices=BENCHES)
+    sp = sub.add_parser(
+        "bench", help="benchmarks that print a table: " + "; ".join(f"{k}: {v}" for k, v in BENCHES.items())
+    )
+    sp.add_argument("what", choices=list(BENCHES), help="which benchmark")
     sp.add_argument(
-        "--scenes", type=int, default=20, help="scenes per class; tables (perception, replanning)"
+        "--scenes",
+        type=int,
+        default=20,
+        help="geometry, verifier: row scenes per class; perception, replanning, rest: tables (default: 20)",
     )
     sp.add_argument(
-        "--tables", type=int, default=3, help="verifier: 33-object tables whose checks are replayed"
+        "--tables",
+        type=int,
+        default=3,
+        help="verifier: 33-object tables whose checks are replayed (default: 3)",
     )
-    sp.add_argument("--out", help="verifier: folder for the scenes of the disagreements, to replay")
-    sp.add_argument("--toppled", type=int, default=0, help="perception: bars laid on their side per table")
-    sp.add_argument("--scenario", help="perception: a scenario's cell; replanning: its planner")
+    sp.add_argument(
+        "--out",
+        help="verifier: folder for the scenes of the disagreements, to replay (default: out/bench_verifier)",
+    )
+    sp.add_argument(
+        "--toppled", type=int, default=0, help="perception: bars laid on their side per table (default: 0)"
+    )
+    sp.add_argument(
+        "--scenario",
+        help="perception: the cell (camera, realism, perception); replanning: the planner (default: the built-in one)",
+    )
     sp.add_argument(
         "--depth-noise",
         metavar="LEVELS",
@@ -70,11 +129,9 @@ def add_parsers(sub) -> None:
         metavar="M",
         help="perception: the camera's height above the table in m (default: the scenario's, 0.8)",
     )
-    sp.add_argument(
-        "--mode", choices=MODES, help="replanning: the planner's mode (the scenario's when not given)"
-    )
-    sp.add_argument("--seed", type=int, default=0)
-    sp.add_argument("--json", action="store_true")
+    sp.add_argument("--mode", choices=MODES, help="replanning: the planner's mode (default: the scenario's)")
+    sp.add_argument("--seed", type=int, default=0, help="the first scene's or table's seed (default: 0)")
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
     sp.set_defaults(func=cmd_bench)
 
 

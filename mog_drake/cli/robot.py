@@ -8,39 +8,78 @@ from mog_drake.cli.common import emit, meshcat_of
 from mog_drake.files import write_atomic
 from mog_drake.planning.config import MODES
 
+SCENARIO_HELP = (
+    "scenario YAML, or the name of one shipped in models/ (realistic, hardware, ...); "
+    "default: the built-in one (models/scenario.yaml lists every setting)"
+)
+
 
 def add_parsers(sub) -> None:
-    for name, helptext in (
-        ("pick", "run the pick-and-place Diagram until the table is clear"),
-        ("diagram", "draw the pick-and-place Diagram's wiring"),
-    ):
-        sp = sub.add_parser(name, help=helptext)
-        sp.add_argument("--scenario", help="scenario YAML (default: the built-in one)")
-        sp.add_argument("--seed", type=int, help="scene and planner seed")
-        sp.add_argument("--mode", choices=MODES, help="multi-object (Alg. 1), single-object, or with pushes")
-        sp.add_argument("--objects", type=int, help="objects on a generated cluttered table")
-        sp.add_argument("--time-limit", type=float, help="simulated robot seconds")
-        sp.add_argument("--json", action="store_true")
-        if name == "pick":
-            sp.add_argument("--robot-ip", help="hardware scenarios: the UR controller's address")
-            sp.add_argument(
-                "--dry-run", action="store_true", help="hardware: log every command instead of sending"
-            )
-            sp.add_argument("--meshcat", action="store_true", help="show it live in Meshcat")
-            sp.add_argument("--record", metavar="HTML", help="write a self-contained Meshcat replay")
-            sp.set_defaults(func=cmd_pick)
-        else:
-            sp.add_argument("-o", "--output", default="out/diagram.svg")
-            sp.set_defaults(func=cmd_diagram)
+    sp = sub.add_parser("pick", help="run the pick-and-place Diagram until the table is clear")
+    sp.add_argument("--scenario", help=SCENARIO_HELP)
+    sp.add_argument(
+        "--seed",
+        type=int,
+        help="the table's and the planner's seed, a whole number (default: the scenario's, 0)",
+    )
+    sp.add_argument(
+        "--mode",
+        choices=MODES,
+        help="mog: multi-object grasps (the paper's Alg. 1); sog: one object at a time; "
+        "push-mog: with consolidating pushes (default: the scenario's, mog)",
+    )
+    sp.add_argument(
+        "--objects",
+        type=int,
+        help="objects on the seeded cluttered table, 1-33 (default: the scenario's, all 33)",
+    )
+    sp.add_argument(
+        "--time-limit",
+        type=float,
+        help="s of simulated robot time before the run stops (default: the scenario's, 600)",
+    )
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
+    sp.add_argument(
+        "--robot-ip", help="hardware scenarios: the UR controller's IP address (default: the scenario's)"
+    )
+    sp.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="hardware scenarios: log every command to a file instead of sending it",
+    )
+    sp.add_argument(
+        "--meshcat", action="store_true", help="show the run live in Meshcat (its address on stderr)"
+    )
+    sp.add_argument(
+        "--record",
+        metavar="HTML",
+        help="write the run as a self-contained Meshcat replay, .html (default: none)",
+    )
+    sp.set_defaults(func=cmd_pick)
 
-    sp = sub.add_parser("gripper", help="bench check of a Robotiq 2F-85 (URCap socket)")
-    sp.add_argument("action", choices=["open", "close", "status"])
-    sp.add_argument("--ip", required=True)
-    sp.add_argument("--port", type=int, default=63352)
-    sp.add_argument("--force", type=float, default=40.0, help="N (20-235)")
-    sp.add_argument("--timeout", type=float, default=2.0, help="s, hard deadline of each request")
-    sp.add_argument("--move-timeout", type=float, default=5.0, help="s for the activation or a move to end")
-    sp.add_argument("--json", action="store_true")
+    sp = sub.add_parser("diagram", help="draw the pick-and-place Diagram's systems and their wiring")
+    sp.add_argument("--scenario", help=SCENARIO_HELP + "; its station (simulated or hardware) is drawn")
+    sp.add_argument(
+        "-o",
+        "--output",
+        default="out/diagram.svg",
+        help="file to write: .svg, .png, .pdf or .dot (default: out/diagram.svg)",
+    )
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
+    sp.set_defaults(func=cmd_diagram)
+
+    sp = sub.add_parser("gripper", help="bench check of a Robotiq 2F-85 over the UR's URCap socket")
+    sp.add_argument("action", choices=["open", "close", "status"], help="what to do")
+    sp.add_argument(
+        "--ip", required=True, help="the UR controller's IP address (the URCap serves the gripper)"
+    )
+    sp.add_argument("--port", type=int, default=63352, help="the URCap socket's TCP port (default: 63352)")
+    sp.add_argument("--force", type=float, default=40.0, help="grip force in N, 20-235 (default: 40)")
+    sp.add_argument("--timeout", type=float, default=2.0, help="s, the deadline of each request (default: 2)")
+    sp.add_argument(
+        "--move-timeout", type=float, default=5.0, help="s for the activation or a move to end (default: 5)"
+    )
+    sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
     sp.set_defaults(func=cmd_gripper)
 
 

@@ -37,6 +37,28 @@ def parse_names(text: str, known, flag: str) -> list[str]:
     return names
 
 
+LATENCY_WORDS = {"cpu": "CPU time", "measured": "wall time", "fixed": "fixed times"}
+
+
+def sweep_latency(scenario: str) -> tuple[str, str]:
+    """(scenario text, latency mode) of a picking sweep: the scenario's own latency mode, or
+    ``cpu`` where it sets none (a sweep's results then do not depend on the machine's load, as
+    a wall-clock latency would make them, nor on how many jobs share its cores). The mode is
+    written into the text, which the sweep records: its folder says how it was run."""
+    import yaml
+
+    doc = yaml.safe_load(scenario) if scenario.strip() else {}
+    doc = doc if isinstance(doc, dict) else {}
+    latency = doc.get("latency") if isinstance(doc.get("latency"), dict) else {}
+    if "mode" in latency:
+        return scenario, str(latency["mode"])
+    addition = "latency:\n  mode: cpu\n" if "latency" not in doc else None
+    if addition is None:  # a latency section without a mode: the mode goes into it
+        doc["latency"] = {**latency, "mode": "cpu"}
+        return yaml.safe_dump(doc, sort_keys=False), "cpu"
+    return (scenario.rstrip("\n") + "\n" if scenario.strip() else "") + addition, "cpu"
+
+
 def evaluate(
     experiment: str, out: str, summary_only: bool = False, jobs: int | None = None, **o
 ) -> tuple[dict, str]:
@@ -50,6 +72,7 @@ def evaluate(
         if experiment == "picking":
             from mog_drake.experiments import picking_eval
             from mog_drake.planning.config import MODES
+            from mog_drake.scenario import scenario_from_text
 
             scenario = ""
             if o["scenario"]:
@@ -58,10 +81,19 @@ def evaluate(
 
                 load_scenario(o["scenario"])  # refuses a bad file before anything runs
                 scenario = read_text(scenario_path(o["scenario"]), "scenario file")
+            from mog_drake.experiments.sweep import read_params
+
+            recorded = (read_params(out) or {}).get("scenario", "")
+            if recorded == scenario and (out / "sweep.json").exists():
+                # A sweep made before sweeps defaulted to the CPU clock: read or resumed as it was made.
+                mode = str(scenario_from_text(scenario).latency.mode) if scenario else "measured"
+            else:
+                scenario, mode = sweep_latency(scenario)
+            note = f"picking: perception and planning take their {LATENCY_WORDS.get(mode, mode)} in simulated time (latency.mode {mode})"
             modes = parse_names(o["modes"], MODES, "--modes")
             summary, results = picking_eval.run(
                 o["scenes"], modes, o["seed"], out, o["objects"], o["time_limit"],
-                scenario=scenario, compare_dir=o["compare"], **common,
+                scenario=scenario, compare_dir=o["compare"], note=note, **common,
             )  # fmt: skip
             return summary, picking_eval.report(summary, results, out, o["compare"])
         grid = {"n_positions": o["positions"], "n_orientations": o["orientations"], **common}

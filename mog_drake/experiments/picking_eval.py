@@ -209,11 +209,13 @@ def run(
     progress: bool = True,
     scenario: str = "",
     compare_dir: str | None = None,
+    note: str = "",
 ) -> tuple[dict, list[dict]]:
     """``scenario``: YAML text of a base scenario (as ``mog-drake pick --scenario`` reads it)
     whose settings every run uses, except the table, time limit, mode and seed set here.
     ``compare_dir``: a sweep this one will be paired with, refused first unless it ran the
-    same tables (`check_comparable`)."""
+    same tables (`check_comparable`). ``note``: a line for stderr once the sweep is about to
+    run (with ``progress``)."""
     modes = list(modes)
     params = {
         "experiment": "picking",
@@ -230,7 +232,9 @@ def run(
     # More tables, or another mode on the same tables, extend a sweep (runs are keyed by both).
     check_params(out_dir, params, growable=("scenes", "modes"))
     todo = tasks(scenes, modes, seed, objects, time_limit, scenario)
-    results = run_sweep(todo, picking_worker, out_dir, jobs, ray_address, "picking", progress, valid_run)
+    results = run_sweep(
+        todo, picking_worker, out_dir, jobs, ray_address, "picking", progress, valid_run, note=note
+    )
     summary = summarize(results, modes)
     done = {r["key"] for r in results}
     for row in summary["rows"]:

@@ -187,10 +187,12 @@ def run_sweep(
     label: str = "sweep",
     progress: bool = True,
     valid: Callable[[dict], bool] | None = None,
+    note: str = "",
 ) -> list[dict]:
     """Runs ``worker(task)`` for every task whose ``key`` has no result yet; returns all
     results in task order. ``worker`` must be a module-level function (it is pickled).
-    ``valid``: the experiment's test of a stored record (see `load_results`).
+    ``valid``: the experiment's test of a stored record (see `load_results`). ``note``: a
+    line for stderr once the folder is read and tasks are left to run (with ``progress``).
     Raises ``MogError`` after the last task if any task raised (see the module's docstring)."""
     out_dir = Path(out_dir)
     path = out_dir / "results.jsonl"
@@ -204,6 +206,10 @@ def run_sweep(
             from mog_drake.experiments.cluster import connect
 
             connect(ray_address)  # refused in one line before anything runs
+        if todo:
+            _note_commit(out_dir)
+            if note and progress:
+                print(note, file=sys.stderr)
         bar = Progress(len(tasks), label, enabled=progress, start=len(tasks) - len(todo))
         bar.update(len(tasks) - len(todo))
         failed: list[dict] = []
@@ -227,6 +233,53 @@ def run_sweep(
             "are kept and running the same command again retries the failed tasks"
         )
     return [done[t["key"]] for t in tasks if t["key"] in done]
+
+
+def source_commit() -> str:
+    """The git commit of the package's source (``+`` when its files differ from it), or "" when
+    it is not a git checkout."""
+    import subprocess
+
+    here = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(here), "rev-parse", "--short=12", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        dirty = subprocess.run(
+            [
+                "git",
+                "-C",
+                str(here),
+                "status",
+                "--porcelain",
+                "--untracked-files=no",
+                "--",
+                "mog_drake",
+                "models",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    if head.returncode != 0:
+        return ""
+    return head.stdout.strip() + ("+" if dirty.stdout.strip() else "")
+
+
+def _note_commit(out_dir: Path) -> None:
+    """Appends the source's commit to the folder's ``commits.txt`` (the commits its runs were
+    made at), unless it is the last one there."""
+    commit = source_commit() or "(not a git checkout)"
+    path = out_dir / "commits.txt"
+    lines = path.read_text().splitlines() if path.is_file() else []
+    if not lines or lines[-1] != commit:
+        with open(path, "a") as f:
+            f.write(commit + "\n")
 
 
 _FAILED = "sweep_error"

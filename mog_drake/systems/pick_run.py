@@ -95,7 +95,7 @@ class PickRun:
 SUMMARY_COLUMNS = [
     "objects",
     "attempts",
-    "success_rate",
+    "success_pct",
     "picked_pct",
     "objects_per_success",
     "pph",
@@ -145,7 +145,9 @@ def run_text(run: PickRun, summary: dict | None = None) -> str:
     the grasps it skipped."""
     from mog_drake.tables import format_table
 
-    text = "\n" + format_table([summary or run.summary()], SUMMARY_COLUMNS)
+    row = dict(summary or run.summary())
+    row["success_pct"] = 100.0 * row["success_rate"]  # rates in percent, as `eval` prints them
+    text = "\n" + format_table([row], SUMMARY_COLUMNS)
     for i, (where, p) in sorted(run.left.items()):
         shape = run.shapes[i] if run.shapes else "?"
         text += f"\nnot in the bin: object {i} ({shape}) {where} at {p}"

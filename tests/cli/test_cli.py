@@ -151,3 +151,28 @@ def test_picking_sweeps_compare_from_the_command_line(tmp_path, capsys):
     assert (pph["tables"], pph["b_minus_a"], pph["ci"]) == (2, 50.0, 0.0)
     code, _, err = run(capsys, *args, "--out", str(tmp_path / "b"), "--compare", str(tmp_path / "nowhere"))
     assert code == 2 and "--compare:" in err and "does not exist" in err
+
+
+def test_every_option_says_what_it_takes_and_its_default():
+    """`--help`: every option that takes a value says its default (or that it is required),
+    and every command and option has a line of help."""
+    import argparse
+
+    from mog_drake.cli import build_parser
+
+    def walk(parser, path):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, sub in action.choices.items():
+                    yield from walk(sub, [*path, name])
+            elif not isinstance(action, argparse._HelpAction):
+                yield path, action
+
+    missing = []
+    for path, action in walk(build_parser(), []):
+        name = " ".join(path) + " " + (action.option_strings[-1] if action.option_strings else action.dest)
+        text = action.help or ""
+        takes_value = action.option_strings and action.nargs != 0
+        if not text or (takes_value and not action.required and "default" not in text):
+            missing.append(name)
+    assert not missing, missing

@@ -15,7 +15,15 @@ import statistics
 
 from mog_drake.tables import format_table
 
-BENCHES = ("geometry", "verifier", "perception", "station", "replanning", "rest")
+# Each benchmark and what it measures (`mog-drake bench --help`).
+BENCHES = {
+    "geometry": "the conditions and the candidate filter, per scene",
+    "verifier": "the picking check against the reference check, pair by pair",
+    "perception": "perception's accuracy and time per image on rendered tables",
+    "station": "the simulated station's CPU per simulated second, and where it goes",
+    "replanning": "the planner's CPU on whole tables, large groups capped and not",
+    "rest": "whether every shape lies still on the station's table",
+}
 
 
 def perception_summary(rows: list[dict]) -> str:
