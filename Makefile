@@ -5,12 +5,12 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-extras lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e ".[test,dev]"
+	$(BIN)/python -m pip install -q -e ".[test,dev,calibrate]"
 	touch $(STAMP)
 
 # A 12-object table (seed 6) on which Alg. 1 starts with four grasps of two objects each.
@@ -19,6 +19,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# CI, after `make test`: sweeps on a real local Ray cluster, and the wheel installed outside
+# the checkout (slower: they install Ray, and the package with its dependencies).
+test-extras: $(STAMP)
+	$(BIN)/python -m pip install -q -e ".[ray]"
+	$(BIN)/python -m pytest -q -m extras
 
 lint: $(STAMP)
 	$(BIN)/ruff check mog_drake tests notebooks

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import sys
 
-from mog_drake.cli import experiments, geometry, robot
+from mog_drake.cli import calibrate, experiments, geometry, robot
 from mog_drake.cli.common import Parser, UsageError, check_args
 from mog_drake.errors import MogError, Terminated, ignore_stop_signals, stop_on_signals
 
@@ -21,6 +21,7 @@ def build_parser() -> Parser:
     geometry.add_parsers(sub)
     experiments.add_parsers(sub)
     robot.add_parsers(sub)
+    calibrate.add_parsers(sub)
     return p
 
 

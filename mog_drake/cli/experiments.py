@@ -129,6 +129,11 @@ def add_parsers(sub) -> None:
         metavar="M",
         help="perception: the camera's height above the table in m (default: the scenario's, 0.8)",
     )
+    sp.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="perception: the camera's pose from a rendered calibration board in each table's world, not the scenario's",
+    )
     sp.add_argument("--mode", choices=MODES, help="replanning: the planner's mode (default: the scenario's)")
     sp.add_argument("--seed", type=int, default=0, help="the first scene's or table's seed (default: 0)")
     sp.add_argument("--json", action="store_true", help="print one JSON document instead of text")
@@ -158,6 +163,7 @@ def cmd_bench(args) -> None:
             mode=args.mode,
             noise_levels=_levels(args.depth_noise),
             camera_height=args.camera_height,
+            calibrate=args.calibrate,
             **given,
         ),
     )

@@ -191,6 +191,13 @@ class RealSenseCamera(LeafSystem):
         )
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._grab)
 
+    def stop(self) -> None:
+        """Stops the camera's stream (safe to call twice)."""
+        try:
+            self._pipe.stop()
+        except RuntimeError:  # pyrealsense2: already stopped
+            pass
+
     def _grab(self, context, state):
         try:
             frames = self._align.process(self._pipe.wait_for_frames(timeout_ms=FRAME_TIMEOUT_MS))

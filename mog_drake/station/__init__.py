@@ -57,7 +57,9 @@ __all__ = [
 ]
 
 
-def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: dict | None = None):
+def MakeStation(
+    scenario: Scenario, scene=None, meshcat=None, hardware_clients: dict | None = None, board=None
+):
     """The station of ``scenario``: the hardware one if ``scenario.hardware.enabled`` (clients
     may be injected, e.g. test fakes), else the simulated one (``scene`` replaces the
     scenario's own objects). The scenario is checked first (`check_scenario`): a station built
@@ -65,4 +67,4 @@ def MakeStation(scenario: Scenario, scene=None, meshcat=None, hardware_clients: 
     check_scenario(scenario)
     if scenario.hardware.enabled:
         return MakeHardwareStation(scenario, **(hardware_clients or {}))
-    return MakeSimStation(scenario, scene, meshcat)
+    return MakeSimStation(scenario, scene, meshcat, board)

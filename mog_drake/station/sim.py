@@ -3,17 +3,21 @@ MultibodyPlant, exporting the port contract (`mog_drake.station`). Its modelling
 verifier's too (`mog_drake.sim.models`)."""
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,
     CollisionFilterDeclaration,
+    GeometryInstance,
+    MakePhongIllustrationProperties,
     MakeRenderEngineVtk,
+    PerceptionProperties,
     RenderEngineVtkParams,
 )
 from pydrake.lcm import DrakeLcm
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant
 from pydrake.multibody.tree import PdControllerGains, SpatialInertia
@@ -265,9 +269,10 @@ def _add_arm(plant, scenario: Scenario, world, gripper: GripperGeometry):
     return (robot, palm, *fingers)
 
 
-def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
+def MakeSimStation(scenario: Scenario, scene=None, meshcat=None, board=None):
     """Builds the simulated station (see `mog_drake.station` for its ports). Returns
-    (diagram, handles)."""
+    (diagram, handles). ``board``: X_TB (4x4), where a printed calibration board lies on the
+    table (`hardware.calibration`), seen by the camera."""
     scene = scene if scene is not None else scene_from_spec(scenario.scene)
     gripper = GripperGeometry()
     # The world's own values: the planner's model unless scenario.realism draws others.
@@ -305,6 +310,8 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
         )
         for i in range(len(scene))
     }
+    if board is not None:
+        _add_board(plant, board)
     # Under the table, out of view: one loaded contact in every step (see add_ballast).
     add_ballast(plant, contact, X_table @ RigidTransform([0.0, 0.0, -0.5]))
     plant.Finalize()
@@ -360,6 +367,32 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None):
     return diagram, StationHandles(
         plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), accel
     )
+
+
+def _add_board(plant, X_TB) -> None:
+    """The calibration board printed on paper (`hardware.calibration.BOARD`), lying on the
+    table with its frame at ``X_TB``: a textured sheet the camera renders; no collision."""
+    import tempfile
+
+    import cv2
+
+    from mog_drake.hardware.calibration import BOARD, PAPER, board_image
+
+    path = Path(tempfile.gettempdir()) / f"mog_drake_board_{BOARD.squares[0]}x{BOARD.squares[1]}.png"
+    if not path.is_file():
+        cv2.imwrite(str(path), board_image())
+    w, h = BOARD.size
+    X_TB = RigidTransform(np.asarray(X_TB))
+    # The sheet's centre, PAPER thick, on the table; the page's frame (z up) from the board's.
+    X_TP = X_TB @ RigidTransform(RotationMatrix(np.diag([1.0, -1.0, -1.0])), [w / 2, h / 2, 0.0])
+    sheet = GeometryInstance(
+        X_TP @ RigidTransform([0.0, 0.0, -PAPER / 2]), Box(w, h, PAPER), "calibration_board"
+    )
+    props = PerceptionProperties()
+    props.AddProperty("phong", "diffuse_map", str(path))
+    sheet.set_perception_properties(props)
+    sheet.set_illustration_properties(MakePhongIllustrationProperties(np.array([0.95, 0.95, 0.95, 1.0])))
+    plant.RegisterVisualGeometry(plant.world_body(), sheet)
 
 
 def _add_camera(builder, scene_graph, cam, world) -> None:

@@ -23,6 +23,7 @@ BENCHES = {
     "station": "the simulated station's CPU per simulated second, and where it goes",
     "replanning": "the planner's CPU on whole tables, large groups capped and not",
     "rest": "whether every shape lies still on the station's table",
+    "calibration": "the camera's pose from a rendered board against the drawn true pose",
 }
 
 
@@ -56,6 +57,7 @@ def run(
     mode: str | None = None,
     noise_levels=None,
     camera_height: float | None = None,
+    calibrate: bool = False,
 ) -> tuple[dict, str]:
     """Runs one benchmark; returns its document and its table as text."""
     from mog_drake.progress import Progress
@@ -75,7 +77,13 @@ def run(
         from mog_drake.experiments.bench.station import bench_perception
 
         rows = bench_perception(
-            scenes, seed, toppled, scenario=scenario, noise_levels=noise_levels, camera_height=camera_height
+            scenes,
+            seed,
+            toppled,
+            scenario=scenario,
+            noise_levels=noise_levels,
+            camera_height=camera_height,
+            calibrate=calibrate,
         )
         return {what: rows}, format_table(rows) + "\n" + perception_summary(rows)
     elif what == "station":
@@ -104,6 +112,11 @@ def run(
             f"{s[past]:.1f} past the free time), {s['decisions']} decisions"
             for k, s in sums.items()
         )
+    elif what == "calibration":
+        from mog_drake.experiments.bench.calibration import bench_calibration, calibration_text
+
+        rows = bench_calibration(scenario, draws=scenes, seed=seed)
+        return {what: rows}, format_table(rows) + "\n" + calibration_text(rows)
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
 

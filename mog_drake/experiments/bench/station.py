@@ -19,6 +19,7 @@ def bench_perception(
     scenario=None,
     noise_levels=None,
     camera_height: float | None = None,
+    calibrate: bool = False,
 ) -> list[dict]:
     """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
     objects found, missed and extra, unrecognised blobs, median and worst position (mm) and yaw
@@ -33,7 +34,8 @@ def bench_perception(
     each table at, in place of the scenario's (one row per level and table; the table is
     rendered once and each level's depth made from it as the station makes it:
     `realism.depth_artefacts`). ``camera_height`` (m): the camera's height above the table, in
-    place of the scenario's."""
+    place of the scenario's. ``calibrate``: perception takes the camera's pose that a rendered
+    board gives in each table's world (`hardware.calibration`), not the scenario's."""
     from dataclasses import replace
 
     from mog_drake.camera import camera_pose
@@ -54,6 +56,11 @@ def bench_perception(
         rgb, clean, truth, K = _render_table(replace(sc, realism=quiet), k, toppled)
         world = sc.realism.draw(k, len(truth.scene))
         perceiver = sc.perceiver()
+        X_WC = camera_pose(sc.camera)
+        if calibrate:
+            from mog_drake.hardware.calibration import board_in_table, frame, solve
+
+            X_WC = solve(*frame(sc)[:3], board_in_table(0.0, 0.0, 0.0)).X_TC
         for level in levels:
             depth = depth_artefacts(
                 clean,
@@ -67,7 +74,7 @@ def bench_perception(
             times = []
             for _ in range(max(repeats, 1)):
                 t = time.perf_counter()
-                seen = perceiver.perceive(rgb, depth, camera_pose(sc.camera), K)
+                seen = perceiver.perceive(rgb, depth, X_WC, K)
                 times.append(time.perf_counter() - t)
             row = {"noise": level, "table_seed": k, "objects": len(truth.scene), "toppled": truth.laid}
             rows.append(
