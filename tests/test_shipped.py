@@ -90,6 +90,7 @@ def _variants(command: str) -> list[list[str]]:
     import re
 
     command = command.replace("--grasp X_MM Y_MM THETA_DEG", "--grasp 0 0 0")
+    command = command.replace("--board-at X_MM Y_MM YAW_DEG", "--board-at 0 0 0")
     bare = re.sub(r"\s*\[[^\]]*\]", "", command)
     full = re.sub(r"\[([^\]|]*)(\|[^\]]*)?\]", r"\1", command)
     out = []

@@ -12,7 +12,30 @@ from mog_drake.scenes import cluttered_scene, row_scene
 from mog_drake.tables import format_table
 
 
-def geometry_demo(out, seed: int = 0) -> tuple[dict, str]:
+def _first_passing(scene, gripper):
+    """(group, source, evaluation, ranking) of the scene's own group, or else of the first of
+    Alg. 1's groups, largest first, with a candidate that passes both conditions (the group
+    the planner would go on to check in physics; the largest when none has one)."""
+    from mog_drake.geometry import create_obj_groups, rank_obj_groups
+
+    polys = scene.polygons()
+    if scene.group is not None:
+        groups, source = [tuple(scene.group)], "scene"
+    else:
+        groups, source = (
+            rank_obj_groups(create_obj_groups(polys.centers), polys.d_fmin, gripper.w_g),
+            "largest passing",
+        )
+    first = None
+    for group in groups:
+        ev, order = ranked_candidates(polys, group, gripper)
+        first = first or (group, ev, order)
+        if ev.passed.any():
+            return group, source, ev, order
+    return first[0], "largest", first[1], first[2]
+
+
+def geometry_demo(out, seed: int = 2) -> tuple[dict, str]:
     """Writes each scene's YAML and picture to ``out``; returns (document, text)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -23,8 +46,7 @@ def geometry_demo(out, seed: int = 0) -> tuple[dict, str]:
         ("cluttered", cluttered_scene(np.random.default_rng(seed))),
     ):
         scene.save(out / f"{name}.yaml")
-        group, source = scene.default_group(gripper.w_g)
-        ev, order = ranked_candidates(scene.polygons(), group, gripper)
+        group, source, ev, order = _first_passing(scene, gripper)
         png = plotting.save(
             plotting.scene_figure(
                 scene,

@@ -6,43 +6,12 @@ import math
 
 import numpy as np
 
-# Two-sided 97.5 % quantiles of Student's t for 1..30 degrees of freedom (beyond: normal).
-_T975 = [
-    12.706,
-    4.303,
-    3.182,
-    2.776,
-    2.571,
-    2.447,
-    2.365,
-    2.306,
-    2.262,
-    2.228,
-    2.201,
-    2.179,
-    2.160,
-    2.145,
-    2.131,
-    2.120,
-    2.110,
-    2.101,
-    2.093,
-    2.086,
-    2.080,
-    2.074,
-    2.069,
-    2.064,
-    2.060,
-    2.056,
-    2.052,
-    2.048,
-    2.045,
-    2.042,
-]
-
 
 def t975(df: int) -> float:
-    return _T975[df - 1] if 1 <= df <= 30 else 1.96
+    """Student's t 97.5 % quantile for ``df`` degrees of freedom (a two-sided 95 % interval)."""
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, df))
 
 
 def mean_ci(values) -> tuple[float, float]:

@@ -54,8 +54,10 @@ def convex_inside_distance(poly: np.ndarray, x, y) -> np.ndarray:
 
 
 def convex_hull_ccw(points: np.ndarray) -> np.ndarray:
-    """Convex hull of 2-D points (Andrew's monotone chain), CCW; points within LENGTH_TOL of an
-    edge (collinear, or a near-duplicate of a corner) are dropped."""
+    """Convex hull of 2-D points (Andrew's monotone chain), CCW from the lowest-leftmost point;
+    points within LENGTH_TOL of an edge (collinear, or a near-duplicate of a corner) are
+    dropped. (Not shapely's hull: it keeps a point 1e-12 m off an edge as a corner, and the
+    sliver edge it makes cost a library shape its stable grasps: tests/geometry/test_polygon.py.)"""
     pts = np.unique(np.asarray(points, dtype=float), axis=0)  # sorted by x, then y
     if len(pts) < 3:
         return pts

@@ -103,7 +103,7 @@ class PlanResult:
                 + (
                     "none found"
                     if g is None
-                    else f"x={g[0]:.4f} m  y={g[1]:.4f} m  theta={math.degrees(g[2]):.1f} deg   lifted {self.result.lifted}"
+                    else f"x={g[0] * 1e3:.2f} mm  y={g[1] * 1e3:.2f} mm  theta={math.degrees(g[2]):.2f} deg   lifted {self.result.lifted}"
                 ),
                 f"time       {t['total']:.3f} s (candidates {t['candidates'] * 1e3:.1f} ms, filter {t['filter'] * 1e3:.1f} ms, "
                 f"rank {t['rank'] * 1e3:.1f} ms, physics {t['physics']:.3f} s)",

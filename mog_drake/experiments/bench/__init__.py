@@ -24,6 +24,7 @@ BENCHES = {
     "replanning": "the planner's CPU on whole tables, large groups capped and not",
     "rest": "whether every shape lies still on the station's table",
     "calibration": "the camera's pose from a rendered board against the drawn true pose",
+    "large": "time and memory of the station, perception and the first decision, 33 to 300 objects",
 }
 
 
@@ -117,6 +118,12 @@ def run(
 
         rows = bench_calibration(scenario, draws=scenes, seed=seed)
         return {what: rows}, format_table(rows) + "\n" + calibration_text(rows)
+    elif what == "large":
+        from mog_drake.experiments.bench.large import bench_large
+
+        bar = Progress(5, what, enabled=progress)
+        rows = bench_large(seed=seed, progress=bar)
+        bar.close()
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
 
