@@ -1,5 +1,7 @@
 """Depth to points, points to pixels, colour to chromaticity."""
 
+import functools
+
 import numpy as np
 
 
@@ -78,6 +80,26 @@ DARK = 0.15
 COLOUR_TOL = 0.15
 
 
+@functools.lru_cache(maxsize=8)
+def _colour_lut(table: tuple, palette: bytes) -> np.ndarray:
+    """`colour_labels`' table of 32^3 colours (the table's chromaticity to 0.01: a cell's images
+    share one)."""
+    K = np.vstack([np.asarray(table, np.float32)[None], np.frombuffer(palette, np.float32).reshape(-1, 3)])
+    levels = (np.arange(32, dtype=np.float32) * 8 + 3.5)[:, None, None, None]
+    grid = np.concatenate(
+        np.broadcast_arrays(levels, levels.transpose(1, 0, 2, 3), levels.transpose(1, 2, 0, 3)), -1
+    ).reshape(-1, 3)
+    top = grid.max(axis=-1)
+    d = ((grid / top[:, None])[:, None, :] - K[None, :, :]) ** 2
+    d = d.sum(-1)
+    nearest = np.argmin(d, axis=1)
+    lut = (nearest - 1).astype(np.int32)
+    lut[d[np.arange(len(d)), nearest] > COLOUR_TOL**2] = len(K) - 1
+    lut[top < DARK * 255.0] = -2
+    lut.flags.writeable = False
+    return lut
+
+
 def colour_labels(rgb: np.ndarray, palette: np.ndarray, table: np.ndarray) -> np.ndarray:
     """Each pixel's colour (H, W int32): the index into ``palette`` (chromaticities, K x 3) of
     the nearest colour within COLOUR_TOL, K where no colour of the palette nor the table's is
@@ -85,18 +107,7 @@ def colour_labels(rgb: np.ndarray, palette: np.ndarray, table: np.ndarray) -> np
     is the nearest within it, -2 where the pixel is too dark to tell (DARK). Looked up in a
     table of 32 levels per channel (a chromaticity within 0.02 of the pixel's own), built for
     this call: 32^3 colours classified cost a tenth of 640 x 480 pixels."""
-    levels = (np.arange(32, dtype=np.float32) * 8 + 3.5)[:, None, None, None]
-    grid = np.concatenate(
-        np.broadcast_arrays(levels, levels.transpose(1, 0, 2, 3), levels.transpose(1, 2, 0, 3)), -1
-    ).reshape(-1, 3)
-    top = grid.max(axis=-1)
-    ch = grid / top[:, None]
-    K = np.vstack([np.asarray(table, np.float32)[None], np.asarray(palette, np.float32)])
-    d = ((ch[:, None, :] - K[None, :, :]) ** 2).sum(-1)
-    nearest = np.argmin(d, axis=1)
-    lut = (nearest - 1).astype(np.int32)
-    lut[d[np.arange(len(d)), nearest] > COLOUR_TOL**2] = len(palette)
-    lut[top < DARK * 255.0] = -2
+    lut = _colour_lut(tuple(np.round(np.asarray(table, float), 2)), np.asarray(palette, np.float32).tobytes())
     c = np.asarray(rgb)[..., :3] >> 3
     return lut[(c[..., 0].astype(np.int32) << 10) | (c[..., 1].astype(np.int32) << 5) | c[..., 2]]
 
