@@ -110,7 +110,9 @@ def scene_figure(
         for rank, i in enumerate(passed):
             draw_gripper(ax, ev.grasps[i], gripper, color=["#1f77b4", "#9467bd", "#17becf"][rank % 3])
             draw_intersections(ax, scene, ev.grasps[i], ev.group, gripper)
-        ax.legend(loc="upper right", fontsize=7, title="candidates", title_fontsize=7)
+        ax.legend(
+            loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, title="candidates", title_fontsize=7
+        )
     if grasp is not None:
         draw_gripper(ax, grasp, gripper, color="#1f77b4")
         draw_intersections(ax, scene, grasp, group if group is not None else range(len(scene)), gripper)
@@ -173,20 +175,18 @@ def groups_figure(scene, groups, title: str | None = None):
 
 
 def ranking_figure(ev: GraspEvaluation, order, top: int = 40):
-    """Total intersection area A_T of the best-ranked candidates, coloured by verdict."""
-    order = np.asarray(order)[:top]
+    """Total intersection area A_T of the ``top`` best-ranked collision-free candidates (the
+    ones GraspPlanner ranks), coloured by the condition they fail or pass."""
+    order = [int(i) for i in order if ev.collision_free[int(i)]][:top]
     fig, ax = plt.subplots(figsize=(9, 3))
-    ax.bar(
-        np.arange(len(order)),
-        ev.area_total[order] * 1e6,
-        color=[VERDICT_COLORS[ev.verdict(int(i))] for i in order],
-    )
-    for verdict, color in VERDICT_COLORS.items():
-        ax.bar([0], [0], color=color, label=verdict)
-    ax.set_xlabel("rank")
+    verdicts = [ev.verdict(i) for i in order]
+    ax.bar(np.arange(len(order)), ev.area_total[order] * 1e6, color=[VERDICT_COLORS[v] for v in verdicts])
+    for verdict in dict.fromkeys(verdicts):
+        ax.bar([0], [0], color=VERDICT_COLORS[verdict], label=verdict)
+    ax.set_xlabel("rank among the collision-free candidates")
     ax.set_ylabel("A_T (mm^2)")
-    ax.legend(fontsize=8)
-    ax.set_title("RankGraspCands: candidates by total intersection area", fontsize=10)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_title("RankGraspCands: collision-free candidates by total intersection area", fontsize=10)
     fig.tight_layout()
     return fig
 

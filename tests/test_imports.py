@@ -9,17 +9,33 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "mog_drake"
 
 
-def test_geometry_planning_scenes_and_perception_never_load_pydrake():
+# The layers below the systems, whole, and the modules elsewhere that say they are Drake-free.
+PURE = ("geometry", "scenes", "perception", "planning")
+PURE_MODULES = ("mog_drake.sim.realism", "mog_drake.experiments.stats", "mog_drake.files", "mog_drake.errors")
+
+
+def test_the_pure_layers_never_load_pydrake():
+    """Every module of geometry, scenes, perception and planning (globbed: a new one is
+    checked too), and the Drake-free modules elsewhere, import without pydrake."""
+    modules = [_module_name(p) for layer in PURE for p in sorted((PACKAGE / layer).glob("*.py"))]
+    modules += list(PURE_MODULES)
     code = (
-        "import sys\n"
-        "import mog_drake.geometry, mog_drake.scenes, mog_drake.perception\n"
-        "import mog_drake.planning.config, mog_drake.planning.picking, mog_drake.planning.planner\n"
-        "import mog_drake.planning.lookahead, mog_drake.planning.pushing, mog_drake.planning.decision\n"
-        "import mog_drake.planning.protocol\n"
+        "import importlib, sys\n"
+        f"for m in {modules!r}: importlib.import_module(m)\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] == 'pydrake'))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "[]"
+    assert out.strip() == "[]" and len(modules) > 30
+
+
+def test_no_private_name_is_imported_from_another_module():
+    """A name another module needs is public: no ``from mog_drake.x import _name``."""
+    found = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mog_drake"):
+                found += [f"{_module_name(path)}: {a.name}" for a in node.names if a.name.startswith("_")]
+    assert not found, found
 
 
 def _module_name(path: Path) -> str:

@@ -52,13 +52,14 @@ def add_parsers(sub) -> None:
 
 
 def _solve(args):
-    from mog_drake.hardware.calibration import board_in_table, frame, solve
+    from mog_drake.hardware.calibration import board_in_table, solve
     from mog_drake.scenario import load_scenario, with_overrides
+    from mog_drake.station.board import board_frame
 
     sc = with_overrides(load_scenario(args.scenario), args.scenario, seed=args.seed)
     x, y, yaw = args.board_at
     at = (x / 1e3, y / 1e3, math.radians(yaw))
-    rgb, depth, intrinsics, truth = frame(sc, args.frames, at)
+    rgb, depth, intrinsics, truth = board_frame(sc, args.frames, at)
     return sc, solve(rgb, depth, intrinsics, board_in_table(*at)), truth
 
 

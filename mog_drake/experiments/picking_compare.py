@@ -170,7 +170,7 @@ def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:
                 f"pph_{b_mode}": sb["pph"],
                 f"pph_no_wait_{b_mode}": _robot_pph(sb),  # its ceiling: had the arm never waited
                 "pph_ratio": sb["pph"] / sa["pph"] if sa["pph"] else float("nan"),
-                f"wait_pct_{b_mode}": _wait_pct(sb),
+                f"wait_pct_{b_mode}": wait_pct(sb),
                 "robot_pph_ratio": _robot_pph(sb) / _robot_pph(sa) if _robot_pph(sa) else float("nan"),
                 f"per_grasp_{a_mode}": sa["objects_per_success"],
                 f"per_grasp_{b_mode}": sb["objects_per_success"],
@@ -240,7 +240,7 @@ def lone_reasons(runs: list[dict]) -> dict:
     return {k: found.count(k) for k in LONE_REASONS}
 
 
-def _wait_pct(summary: dict) -> float:
+def wait_pct(summary: dict) -> float:
     """The arm's wait for compute as a share of its robot time (%); nan if not recorded."""
     try:
         return 100.0 * (summary["wait_perception_s"] + summary["wait_planning_s"]) / summary["robot_time_s"]

@@ -9,7 +9,6 @@ from collections import Counter
 from pathlib import Path
 
 from mog_drake.experiments.picking_compare import (
-    _wait_pct,
     check_comparable,
     compare,
     compare_modes,
@@ -17,6 +16,7 @@ from mog_drake.experiments.picking_compare import (
     lone_reasons,
     robot_time_text,
     transit_drops,
+    wait_pct,
 )
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import check_params, run_sweep
@@ -173,7 +173,7 @@ def summarize(results: list[dict], modes) -> dict:
             mean, ci = mean_ci([r[key] * scale for r in rs if key in r and r[key] == r[key]])
             row[key], row[key + "_ci"] = mean, ci
         # The arm's wait for compute as a share of its robot time: the median over tables.
-        shares = [w for r in rs if (w := _wait_pct(r)) == w]  # nan: not recorded
+        shares = [w for r in rs if (w := wait_pct(r)) == w]  # nan: not recorded
         row["wait_share_pct"] = float(statistics.median(shares)) if shares else float("nan")
         paper = PAPER_TABLE1.get(m, {})
         row["paper_success_rate"] = paper.get("success_rate", float("nan"))

@@ -45,7 +45,7 @@ NEGATIVE_WEIGHT = 1.5
 FIT_MARGIN = 0.004  # m
 
 
-def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
+def seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
     """Sets of k centres to fit k instances of one shape from, one set per try. k = 1: the
     centroid. k = 2: the centroids of the two halves of the cluster split at its median along
     each of ``tries + 1`` directions (k-means splits two bars lying side by side along the
@@ -65,7 +65,7 @@ def _seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
             yield _kmeans(pts, k, rng)
 
 
-def _outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
+def outline(pts: np.ndarray, tol: float = 0.001) -> np.ndarray | None:
     """Convex hull (CCW) of 2-D points, simplified to ``tol``; None if it has no area."""
     hull = shapely.convex_hull(shapely.MultiPoint(pts)).simplify(tol)
     if not isinstance(hull, shapely.Polygon) or hull.area <= tol**2:

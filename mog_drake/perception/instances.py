@@ -12,9 +12,9 @@ from mog_drake.perception.fitting import (
     FIT_MARGIN,
     NEGATIVE_WEIGHT,
     PolygonScore,
-    _seedings,
     pixels_inside,
     quadratic_search,
+    seedings,
 )
 from mog_drake.scenes import SceneObject
 
@@ -37,7 +37,7 @@ CLEAN_EDGE = 0.6
 
 
 @dataclass
-class _Window:
+class FitWindow:
     """Where one instance is fitted: its score over a window of the image (rows, cols), the
     window's origin pixel, which of its pixels are lower than the shape's top, and the seed."""
 
@@ -92,7 +92,7 @@ def _clean_apart(fits: list[_Fit], im) -> bool:
 _CORNERS = ((-1, -1), (1, -1), (1, 1), (-1, 1))
 
 
-class _Image:
+class EvidenceImage:
     """What one perceive call knows of the image: per-pixel points (P, nan where not on the
     perceived table), heights, colour classes (-1 off the object pixels), which pixels are
     explained by a fit, and the camera."""
@@ -121,7 +121,7 @@ class InstanceFitter:
     """The fitting half of `Perceiver` (its ``config``, ``library``, ``names`` and shapes'
     projected outlines are the perceiver's)."""
 
-    def _edge_samples(self, k: int, im: _Image) -> tuple:
+    def _edge_samples(self, k: int, im: EvidenceImage) -> tuple:
         """Samples of each edge of shape ``k``'s top face: about one per pixel of its length
         as seen at the table's centre (at least EDGE_SAMPLES), the same for every window of
         the shape, so that its windows share one table of samples."""
@@ -142,7 +142,7 @@ class InstanceFitter:
             < 2 * self.config.top_band
         )
 
-    def _split(self, k: int, im: _Image, labels, label: int, idx, n_est: int, colour, rng) -> list:
+    def _split(self, k: int, im: EvidenceImage, labels, label: int, idx, n_est: int, colour, rng) -> list:
         """Fits ``n_est`` touching instances of shape ``k`` to component ``label`` (its flat
         pixel indices ``idx``): the objects of the best split, their pixels left explained."""
         cfg = self.config
@@ -150,7 +150,7 @@ class InstanceFitter:
         shape = self.library[name]
         pts = im.xy[idx]
         best = None  # (score of the split, explained mask, objects)
-        for seeds in _seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
+        for seeds in seedings(pts, min(n_est, len(idx)), cfg.separation_tries, rng):
             before = im.explained
             fits: list[_Fit] = []
             # Best first: every seed left is fitted, and the fit that explains most
@@ -200,8 +200,8 @@ class InstanceFitter:
         im.explained = best[1]
         return best[2]
 
-    def _window(self, k: int, im: _Image, labels: np.ndarray, label: int, centre):
-        """The evidence around ``centre`` for shape ``k`` and its score (`_Window`), or None
+    def _window(self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centre):
+        """The evidence around ``centre`` for shape ``k`` and its score (`FitWindow`), or None
         when fewer than 5 unexplained pixels of component ``label`` lie near it."""
         cfg = self.config
         shape = self.library[self.names[k]]
@@ -225,9 +225,9 @@ class InstanceFitter:
         origin = (cols.start, rows.start)
         v0 = shape.vertices
         score = PolygonScore(evidence, origin, im.cam.plane(h), v0, self._edge_samples(k, im))
-        return _Window(score, rows, cols, origin, lower, np.asarray(centre, float), k)
+        return FitWindow(score, rows, cols, origin, lower, np.asarray(centre, float), k)
 
-    def _fit(self, k: int, im: _Image, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
+    def _fit(self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
         """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
         ``labels``) near ``centre``: from the pose ``start`` if given, else from the centre at
         angles over the shape's symmetry (and from centres up to ``spread`` m from it in x
@@ -238,7 +238,9 @@ class InstanceFitter:
             return None
         return self._fit_windows(im, [win], start=start, spread=spread)[0]
 
-    def _fit_many(self, k: int, im: _Image, labels: np.ndarray, label: int, centres, spread=0.0) -> list:
+    def _fit_many(
+        self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centres, spread=0.0
+    ) -> list:
         """`_fit` from each of ``centres`` at once (one batch of poses per search step):
         [(fit, index into centres)] for the centres with pixels left to fit."""
         wins = [(self._window(k, im, labels, label, c), i) for i, c in enumerate(centres)]
@@ -248,7 +250,7 @@ class InstanceFitter:
         fits = self._fit_windows(im, [w for w, _ in wins], spread=spread)
         return [(f, i) for f, (_, i) in zip(fits, wins)]
 
-    def _fit_windows(self, im: _Image, wins: list, start=None, spread=0.0) -> list:
+    def _fit_windows(self, im: EvidenceImage, wins: list, start=None, spread=0.0) -> list:
         """Fits each window's shape in it, all at once (one batch of poses per search step,
         the windows told apart by owner): lone instances cost one search, not one each, and
         shapes share it too."""

@@ -34,13 +34,13 @@ from scipy import ndimage
 from mog_drake.errors import MogError
 from mog_drake.geometry.polygon import transform
 from mog_drake.perception.fitting import (
-    _outline,
     components,
     near_polygon,
+    outline,
     separate_overlaps,
     symmetry_order,
 )
-from mog_drake.perception.instances import InstanceFitter, _Image, _Window
+from mog_drake.perception.instances import EvidenceImage, FitWindow, InstanceFitter
 from mog_drake.perception.pointcloud import (
     DARK,
     Pinhole,
@@ -65,7 +65,7 @@ class PerceptionConfig:
     shapes: list[str] = field(default_factory=list)  # shapes to look for (default: every library shape)
     # A component holding several instances of one shape (touching, one colour and height) is
     # split from this many seedings: k-means centres for three or more instances, median
-    # splits along separation_tries + 1 directions for two (see _seedings). Its instances are
+    # splits along separation_tries + 1 directions for two (see seedings). Its instances are
     # fitted best first; the split whose fits explain most of its pixels, less their spill
     # onto lower surfaces, is kept, and one whose every fit is clean ends the search.
     separation_tries: int = 2
@@ -318,7 +318,7 @@ class Perceiver(InstanceFitter):
         gap = np.abs(obj_z[:, None] - self.heights[None, :])
         gap[obj_cls[:, None] != self.colour_class[None, :]] = np.inf
         obj_top = self.heights[np.argmin(gap, axis=1)] if len(obj_px) else obj_z
-        im = _Image(P, z, cls, Pinhole(X_WC, intrinsics))
+        im = EvidenceImage(P, z, cls, Pinhole(X_WC, intrinsics))
         rng = np.random.default_rng(seed)
         found: list[SceneObject] = []
         # Large shapes first: their fits then mask their pixels for the smaller ones. The
@@ -328,7 +328,7 @@ class Perceiver(InstanceFitter):
         order = sorted(range(len(self.names)), key=lambda k: -self.area[k])
         found_by: dict[int, list[SceneObject]] = {k: [] for k in order}
         pending: list[tuple] = []  # (k, labels, colour mask, several) whose lone windows wait
-        wins: list[_Window] = []
+        wins: list[FitWindow] = []
 
         def flush():
             colours = {k: colour for k, _, colour, _ in pending}
@@ -390,9 +390,9 @@ class Perceiver(InstanceFitter):
         # 1 mm) and the height of its top: enough to plan a grasp of it as a prism.
         zf = z.ravel()
         scene.meta["unrecognised"] = [
-            {"vertices": outline.round(5).tolist(), "top": round(float(np.percentile(zf[idx], 95)), 5)}
+            {"vertices": hull.round(5).tolist(), "top": round(float(np.percentile(zf[idx], 95)), 5)}
             for idx in unknown
-            if (outline := _outline(im.xy[idx])) is not None
+            if (hull := outline(im.xy[idx])) is not None
         ]
         scene.meta["overlap_corrections"] = moved
         return scene

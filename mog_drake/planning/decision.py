@@ -66,7 +66,7 @@ class PaidPush:
     after: tuple
 
 
-def _around(scene, group, gripper) -> tuple:
+def around_group(scene, group, gripper) -> tuple:
     ids = objects_in_reach(scene, group, gripper, MEMORY_REACH_MARGIN)
     return tuple((i, scene.objects[i].shape, scene.polygon(i)) for i in ids)
 
@@ -91,20 +91,20 @@ def _match(old: tuple, new: tuple, tol: float = MEMORY_TOL) -> dict[int, int] | 
     return ids
 
 
-def _same_group(f_group, f_around, group, around) -> dict[int, int] | None:
-    """Old id -> new id if ``f_group`` with ``f_around`` around it (as `_around` gives) is
+def same_group(f_group, f_around, group, around) -> dict[int, int] | None:
+    """Old id -> new id if ``f_group`` with ``f_around`` around it (as `around_group` gives) is
     ``group`` now, every object around it where it was (``around``, now); else None."""
     if len(f_group) != len(group) or (ids := _match(f_around, around)) is None:
         return None
     return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
 
 
-def _recall(pending: list, group, around, avoid) -> PlanResult | None:
+def recall(pending: list, group, around, avoid) -> PlanResult | None:
     """The replay of the first remembered verdict in ``pending`` of ``group`` with ``around``
     (taken out of ``pending``); None if none is remembered, or its grasp repeats one to
     avoid: plan the group."""
     for k, f in enumerate(pending):
-        if isinstance(f, FailedGroup) and (ids := _same_group(f.group, f.around, group, around)) is not None:
+        if isinstance(f, FailedGroup) and (ids := same_group(f.group, f.around, group, around)) is not None:
             del pending[k]
             return _replay(f, ids, group, avoid)
     return None

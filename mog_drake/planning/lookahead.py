@@ -7,10 +7,17 @@ from __future__ import annotations
 from dataclasses import replace
 
 from mog_drake.planning.config import PlannerSpec
-from mog_drake.planning.decision import MEMORY_SIZE, FailedGroup, FailedPush, PaidPush, PickDecision, _around
+from mog_drake.planning.decision import (
+    MEMORY_SIZE,
+    FailedGroup,
+    FailedPush,
+    PaidPush,
+    PickDecision,
+    around_group,
+)
 from mog_drake.planning.picking import next_pick
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.planning.pushing import _paid_push
+from mog_drake.planning.pushing import paid_push
 from mog_drake.scenes import Scene
 
 
@@ -50,8 +57,10 @@ def lookahead(
         and found is not None
         and found.found
     ):
-        memory.insert(0, FailedGroup(tuple(found.group), _around(rest, found.group, planner.gripper), found))
-    if ahead.status == "push" and (paid := _paid_push(rest, ahead, planner.gripper)) is not None:
+        memory.insert(
+            0, FailedGroup(tuple(found.group), around_group(rest, found.group, planner.gripper), found)
+        )
+    if ahead.status == "push" and (paid := paid_push(rest, ahead, planner.gripper)) is not None:
         memory.insert(0, paid)
     return tuple(memory[:MEMORY_SIZE])
 

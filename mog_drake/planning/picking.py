@@ -54,11 +54,11 @@ from mog_drake.planning.decision import (
     FailedPush,
     PaidPush,
     PickDecision,
-    _around,
-    _recall,
+    around_group,
+    recall,
 )
 from mog_drake.planning.planner import GraspPlanner
-from mog_drake.planning.pushing import _consider_pushes, lone_reason
+from mog_drake.planning.pushing import consider_pushes, lone_reason
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
 # Before a decision gives up ("no_grasp": the run would end with objects on the table), every
@@ -126,8 +126,8 @@ def next_pick(
             break
         res = around = None
         if failures is not None:
-            around = _around(scene, group, planner.gripper)
-            res = _recall(pending, group, around, avoid)
+            around = around_group(scene, group, planner.gripper)
+            res = recall(pending, group, around, avoid)
             decision.remembered += res is not None
         if res is None:
             res = planner.plan(scene, group, rng=rng, avoid=avoid)
@@ -156,7 +156,7 @@ def next_pick(
 
 def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
     """push-mog: Alg. 1's decision on its groups and the adjacent ones, then the pushes worth
-    more than it (`_consider_pushes`)."""
+    more than it (`consider_pushes`)."""
     d = next_pick(
         scene,
         planner,
@@ -174,7 +174,7 @@ def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pu
         and not d.unrecognised
         and d.status in ("grasp", "no_grasp")
     ):
-        _consider_pushes(scene, planner, spec, d, rng, avoid, failures)
+        consider_pushes(scene, planner, spec, d, rng, avoid, failures)
     d.lone = lone_reason(scene, planner, spec, d, pushes_left)
     return d
 

@@ -20,8 +20,8 @@ from mog_drake.planning.decision import (
     FailedPush,
     PaidPush,
     PickDecision,
-    _around,
-    _same_group,
+    around_group,
+    same_group,
 )
 from mog_drake.planning.planner import GraspPlanner, repeats
 
@@ -30,13 +30,13 @@ from mog_drake.planning.planner import GraspPlanner, repeats
 PUSH_GRASP_CHECKS = 2
 
 
-def _paid_push(before, d: PickDecision, gripper) -> PaidPush | None:
+def paid_push(before, d: PickDecision, gripper) -> PaidPush | None:
     """Push decision ``d`` on ``before`` as a `PaidPush`; None if its grasp does not follow at
     once (nothing to replay) or the simulated push moved an object beyond its group's reach
     (its replay would miss that)."""
     if d.grasp is None or d.after is None or len(d.after.objects) != len(before.objects):
         return None
-    around = _around(before, d.group, gripper)
+    around = around_group(before, d.group, gripper)
     inside = {i for i, _, _ in around}
     for i in range(len(before.objects)):
         if i not in inside:
@@ -50,7 +50,7 @@ def _same_push(target: int, toward: int, f_group, f_around, p: Push, group, arou
     """Old id -> new id if a remembered push (of ``target`` to ``toward``, setting up
     ``f_group``, with ``f_around`` around it) is push ``p`` of ``group`` now, every object
     around it where it was (``around``, now); else None."""
-    ids = _same_group(f_group, f_around, group, around)
+    ids = same_group(f_group, f_around, group, around)
     if ids is None or ids.get(target) != p.target or ids.get(toward) != p.toward:
         return None
     return ids
@@ -75,7 +75,7 @@ def _replay_push(known, p: Push, group, around, scene, avoid):
     return None
 
 
-def _consider_pushes(
+def consider_pushes(
     scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid, memory=None
 ) -> None:
     """push-mog: turns decision ``d`` (Alg. 1's) into a push when its grasp lifts fewer than
@@ -111,7 +111,7 @@ def _consider_pushes(
     known = [f for f in memory or () if isinstance(f, FailedPush)]
     paid = [f for f in memory or () if isinstance(f, PaidPush)]
     for _, _, p, group in options if paid else ():  # the lookahead's push, if it stands
-        hit = _replay_push(paid, p, group, _around(scene, group, planner.gripper), scene, avoid)
+        hit = _replay_push(paid, p, group, around_group(scene, group, planner.gripper), scene, avoid)
         if (
             hit is not None
             and len(hit[2]) / (tp + push_duration(hit[1], spec.pushes.speed) + tg) > n_now / tg
@@ -127,7 +127,7 @@ def _consider_pushes(
     for _, _, p, group in options:
         if simulated >= spec.pushes.checks:
             break
-        around = _around(scene, group, planner.gripper) if memory is not None else ()
+        around = around_group(scene, group, planner.gripper) if memory is not None else ()
         if memory is not None and _did_not_pay(
             known, p, group, around, n_now / tg, tp + push_duration(p, spec.pushes.speed) + tg
         ):
@@ -168,7 +168,7 @@ def _consider_pushes(
 
 
 def _push_options(scene, planner: GraspPlanner, spec: PlannerSpec, n_now: int) -> list[tuple]:
-    """The pushes worth simulating (see `_consider_pushes`), largest group first, then
+    """The pushes worth simulating (see `consider_pushes`), largest group first, then
     shortest push: (-len(group), distance, push, group)."""
     tp, tg = spec.pushes.push_time_s, spec.pushes.grasp_time_s
     polys = scene.polygons()

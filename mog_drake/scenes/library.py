@@ -187,7 +187,7 @@ def check_yaml(text: str, where: str, max_values: int | None = None) -> None:
         return  # the loader that follows names the syntax error
 
 
-def _read_yaml(path: Path) -> dict:
+def read_yaml(path: Path) -> dict:
     path = Path(path)
     text = read_text(path, "YAML file")
     check_yaml(text, str(path))
@@ -233,7 +233,7 @@ class ShapeLibrary:
         """The default library, extended (and overridden by name) by ``extra_files``."""
         lib = cls(shapes={}, inventories={})
         for f in ([base] if base else []) + [Path(p) for p in extra_files]:
-            lib._merge(_read_yaml(Path(f)), Path(f))
+            lib._merge(read_yaml(Path(f)), Path(f))
         return lib
 
     def _merge(self, data: dict, path: Path) -> None:

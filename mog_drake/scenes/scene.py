@@ -15,7 +15,7 @@ from mog_drake.geometry.conditions import PolygonSet
 from mog_drake.geometry.polygon import (
     transform,
 )
-from mog_drake.scenes.library import Shape, ShapeLibrary, _read_yaml, default_library
+from mog_drake.scenes.library import Shape, ShapeLibrary, default_library, read_yaml
 
 #: Default table top (xmin, xmax, ymin, ymax) in m: objects must lie inside it.
 DEFAULT_TABLE = (-0.25, 0.25, -0.25, 0.25)
@@ -247,7 +247,7 @@ class Scene:
     @classmethod
     def load(cls, path: str | Path, library: ShapeLibrary | None = None) -> Scene:
         path = Path(path)
-        return cls.from_dict(_read_yaml(path), library, where=str(path), base_dir=path.parent)
+        return cls.from_dict(read_yaml(path), library, where=str(path), base_dir=path.parent)
 
 
 # --- generators -------------------------------------------------------------------------

@@ -12,12 +12,11 @@ from mog_drake.errors import MogError
 from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.geometry.polygon import convex_hull_ccw
 from mog_drake.geometry.push import Push
-from mog_drake.systems.perception import Checked, Perceived, _Immutable
-from mog_drake.systems.planner import Decision
+from mog_drake.systems.messages import Checked, Decision, Immutable, Perceived
 
 
 @dataclass
-class ControllerState(_Immutable):
+class ControllerState(Immutable):
     """Replaced by a new value on every change (``attempts`` is a new list of new dicts)."""
 
     mode: str = "settle"

@@ -14,8 +14,6 @@ None of them reads the plant's ground truth: Perception sees only the camera ima
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
@@ -23,46 +21,8 @@ from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.config import LatencyConfig
 from mog_drake.perception import Perceiver
-from mog_drake.systems.jobs import Job, Worker
-
-
-class _Immutable:
-    """State values that are replaced, never changed in place. Drake copies abstract state
-    (every unrestricted update copies the whole state); a deep copy of a perceived Scene or a
-    motion plan per 10 ms tick cost a third of a pick run's wall time, so copies share."""
-
-    def __copy__(self):
-        return self
-
-    def __deepcopy__(self, memo):
-        return self
-
-
-@dataclass
-class Perceived(_Immutable):
-    """A perceived scene: its request ``counter``; the simulated times of the request and of
-    the result becoming visible; the job's wall time; whether it retakes a request whose
-    table changed before its decision was used (``retake``); and the depth image it was
-    perceived from (for the change check)."""
-
-    counter: int = -1
-    scene: object = None
-    t_request: float = 0.0
-    t_visible: float = 0.0
-    wall_time: float = 0.0
-    retake: bool = False
-    depth: object = None
-    wall_total: float = 0.0  # wall time of every perception job so far (s)
-
-
-@dataclass
-class Checked(_Immutable):
-    """The answer to a change check of request ``counter``: whether the table in view now
-    differs from the image that request was perceived from (``pixels`` that changed)."""
-
-    counter: int = -1
-    changed: bool = False
-    pixels: int = 0
+from mog_drake.systems.jobs import Worker
+from mog_drake.systems.messages import Checked, Perceived, Slot
 
 
 class PerceptionSystem(LeafSystem):
@@ -109,7 +69,7 @@ class PerceptionSystem(LeafSystem):
         self._request = self.DeclareVectorInputPort("request", 1)
         self._check = self.DeclareVectorInputPort("check", 1)
         self._state = self.DeclareAbstractState(AbstractValue.Make(Perceived()))
-        self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        self._job = self.DeclareAbstractState(AbstractValue.Make(Slot()))
         self._checked = self.DeclareAbstractState(AbstractValue.Make(Checked()))
         only_state = {self.all_state_ticket()}
         self.DeclareAbstractOutputPort(
@@ -151,7 +111,7 @@ class PerceptionSystem(LeafSystem):
                     cur.wall_total + job.wall_time(),
                 )
             )
-            state.get_mutable_abstract_state(self._job).set_value(_Slot())
+            state.get_mutable_abstract_state(self._job).set_value(Slot())
             job = None
         last = job.counter if job is not None else cur.counter
         if job is None and req > max(last, 0):  # requests count from 1
@@ -164,14 +124,14 @@ class PerceptionSystem(LeafSystem):
                 return
             depth = np.array(self._depth.Eval(context).data[:, :, 0])  # copies: jobs outlive events
             if pending is None or pending[0] != req:
-                state.get_mutable_abstract_state(self._job).set_value(_Slot(pending=(req, depth, t, t)))
+                state.get_mutable_abstract_state(self._job).set_value(Slot(pending=(req, depth, t, t)))
                 return
             _, depth0, t0, t_first = pending
             n = self._perceiver.changed_pixels(
                 depth0, depth, self._X_WC, self._K, self._change[1], still=True
             )
             if n > self._change[0] and t - t_first < self._still[1]:
-                state.get_mutable_abstract_state(self._job).set_value(_Slot(pending=(req, depth, t, t_first)))
+                state.get_mutable_abstract_state(self._job).set_value(Slot(pending=(req, depth, t, t_first)))
                 return
             rgb = np.array(self._rgb.Eval(context).data)
             # A retake: the request after a check that found the table changed.
@@ -187,7 +147,7 @@ class PerceptionSystem(LeafSystem):
                 counter=req,
                 info={"depth": depth, "retake": retake},
             )
-            state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
+            state.get_mutable_abstract_state(self._job).set_value(Slot(job))
         chk = int(self._check.Eval(context)[0])
         if chk > checked.counter and cur.counter == chk and cur.depth is not None:
             now = np.asarray(self._depth.Eval(context).data[:, :, 0])
@@ -196,9 +156,3 @@ class PerceptionSystem(LeafSystem):
 
     def _out(self, context, output) -> None:
         output.set_value(context.get_abstract_state(self._state).get_value())
-
-
-@dataclass
-class _Slot(_Immutable):
-    job: Job | None = None
-    pending: tuple | None = None  # (request, depth, when, first look): waiting for a still table

@@ -18,31 +18,7 @@ from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
 from mog_drake.planning.picking import next_pick, tally_misses
 from mog_drake.systems.jobs import Worker
-from mog_drake.systems.perception import Perceived, _Immutable, _Slot
-
-
-@dataclass
-class Decision(_Immutable):
-    counter: int = -1
-    decision: PickDecision | None = None
-    objects_seen: int = 0
-    recent: tuple = ()  # the last grasps issued, not to be repeated
-    failures: tuple = ()  # groups found to have no grasp (see next_pick)
-    unrecognised_grasps: int = 0  # grasps of unrecognised blobs issued in a row
-    rng: np.random.Generator | None = None  # the planner's random draws, after this decision
-    t_request: float = 0.0  # simulated time the scene became visible (the planning request)
-    t_visible: float = 0.0  # simulated time this decision became visible
-    wall_time: float = 0.0  # the planning job's wall time (s)
-    cpu_time: float = 0.0  # the planning job's CPU time (s)
-    previous: Decision | None = None  # the state this one was planned from
-    pushes: int = 0  # push-mog: pushes decided so far, this one included
-    # (shape, x, y) of the objects this decision's grasp means to take, and the failed grasps
-    # per object as of its image ((shape, x, y, count): see tally_misses).
-    targets: tuple = ()
-    misses: tuple = ()
-    # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
-    # time), or "" (none ran).
-    lookahead: str = ""
+from mog_drake.systems.messages import Decision, Perceived, Slot
 
 
 @dataclass(frozen=True)
@@ -102,12 +78,12 @@ class PlannerSystem(LeafSystem):
         self._state = self.DeclareAbstractState(
             AbstractValue.Make(Decision(rng=np.random.default_rng(self._spec.seed)))
         )
-        self._job = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        self._job = self.DeclareAbstractState(AbstractValue.Make(Slot()))
         # The lookahead for the next decision, until that decision takes (or drops) it.
-        self._ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        self._ahead = self.DeclareAbstractState(AbstractValue.Make(Slot()))
         # The last lookahead sent, kept after it was taken or dropped: if it raised, the next
         # one's start re-raises it.
-        self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(_Slot()))
+        self._last_ahead = self.DeclareAbstractState(AbstractValue.Make(Slot()))
         self.DeclareAbstractOutputPort(
             "decision",
             lambda: AbstractValue.Make(Decision()),
@@ -162,7 +138,7 @@ class PlannerSystem(LeafSystem):
             lookahead=used,
         )
         state.get_mutable_abstract_state(self._state).set_value(cur)
-        state.get_mutable_abstract_state(self._job).set_value(_Slot())
+        state.get_mutable_abstract_state(self._job).set_value(Slot())
         # After a grasp, the lookahead plans this image without its objects; after a push
         # whose grasp follows at once, the table the simulated push left without them.
         chained = d.status == "push" and d.grasp is not None and d.after is not None
@@ -184,8 +160,8 @@ class PlannerSystem(LeafSystem):
             t_request=t,
             counter=counter,
         )
-        state.get_mutable_abstract_state(self._ahead).set_value(_Slot(ahead))
-        state.get_mutable_abstract_state(self._last_ahead).set_value(_Slot(ahead))
+        state.get_mutable_abstract_state(self._ahead).set_value(Slot(ahead))
+        state.get_mutable_abstract_state(self._last_ahead).set_value(Slot(ahead))
 
     def _decide(self, p: Perceived, cur: Decision, t: float, state) -> None:
         """A new image: its decision starts on the planner's thread."""
@@ -202,7 +178,7 @@ class PlannerSystem(LeafSystem):
             used = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
                 memory, used = ahead.result(), "used"
-            state.get_mutable_abstract_state(self._ahead).set_value(_Slot())
+            state.get_mutable_abstract_state(self._ahead).set_value(Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
         job = self._worker.submit(
@@ -218,7 +194,7 @@ class PlannerSystem(LeafSystem):
             counter=p.counter,
             info=_Request(base, len(p.scene), p.scene, misses, used),
         )
-        state.get_mutable_abstract_state(self._job).set_value(_Slot(job))
+        state.get_mutable_abstract_state(self._job).set_value(Slot(job))
 
     def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
         d = next_pick(

@@ -272,7 +272,9 @@ def test_two_picking_sweeps_are_compared_table_by_table():
     assert success["a"] == pytest.approx(85.0) and success["b"] == pytest.approx(95.0)
     assert success["b_minus_a"] == pytest.approx(10.0) and success["ci"] == pytest.approx(0.0)
     # Differences 30 and 10: mean 20, 95 % t half-width 12.706 * sd / sqrt(2) = 12.706 * 10.
-    assert rows["pph"]["b_minus_a"] == pytest.approx(20.0) and rows["pph"]["ci"] == pytest.approx(127.06, rel=1e-4)
+    assert rows["pph"]["b_minus_a"] == pytest.approx(20.0) and rows["pph"]["ci"] == pytest.approx(
+        127.06, rel=1e-4
+    )
     drops = doc["transit_drops"]["mog"]
     # A's failed attempt lifted nothing (missed); B's lifted three and dropped them all (lost).
     assert drops["a"] == {"drop_attempts": 1, "dropped": 1, "attempts": 3, "missed": 1, "lost": 0}

@@ -9,8 +9,9 @@ import pytest
 pytest.importorskip("cv2")
 
 from mog_drake.errors import MogError  # noqa: E402
-from mog_drake.hardware.calibration import BOARD, BoardSpec, board_in_table, frame, pose_error, solve  # noqa: E402
+from mog_drake.hardware.calibration import BOARD, BoardSpec, board_in_table, pose_error, solve  # noqa: E402
 from mog_drake.scenario import ClutteredScene, load_scenario, scenario_from_text  # noqa: E402
+from mog_drake.station.board import board_frame  # noqa: E402
 
 
 def _realistic(seed: int, scale: float = 1.0):
@@ -29,7 +30,7 @@ def test_the_drawn_camera_error_is_recovered_to_a_millimetre(seed, scale):
     the pose solved from the rendered board is within 1 mm and 0.1 deg of the rendering
     camera's, and the printed YAML is the scenario's camera.X_PB."""
     sc = _realistic(seed, scale)
-    rgb, depth, intrinsics, truth = frame(sc)
+    rgb, depth, intrinsics, truth = board_frame(sc)
     cal = solve(rgb, depth, intrinsics, board_in_table(0.0, 0.0, 0.0))
     before = pose_error(
         np.asarray(load_scenario("realistic").camera.X_PB.GetDeterministicValue().GetAsMatrix4()), truth
@@ -46,18 +47,18 @@ def test_the_drawn_camera_error_is_recovered_to_a_millimetre(seed, scale):
 def test_a_board_elsewhere_on_the_table_and_turned_gives_the_same_pose():
     sc = _realistic(2)
     at = (0.05, -0.04, np.radians(20.0))
-    rgb, depth, intrinsics, truth = frame(sc, board_at=at)
+    rgb, depth, intrinsics, truth = board_frame(sc, board_at=at)
     mm, deg = pose_error(solve(rgb, depth, intrinsics, board_in_table(*at)).X_TC, truth)
     assert mm < 0.001 and deg < 0.1
 
 
 def test_bad_frames_are_refused_in_one_line():
     sc = _realistic(3)
-    rgb, depth, intrinsics, _ = frame(sc)
+    rgb, depth, intrinsics, _ = board_frame(sc)
     X_TB = board_in_table(0.0, 0.0, 0.0)
     with pytest.raises(MogError, match="no calibration board found"):  # an empty table
         solve(np.full_like(rgb, 200), depth, intrinsics, X_TB)
-    half = frame(sc, board_at=(0.0, 0.36, 0.0))  # half of it past the image's edge
+    half = board_frame(sc, board_at=(0.0, 0.36, 0.0))  # half of it past the image's edge
     with pytest.raises(MogError, match=r"only \d+ of the board's 24 corners are seen"):
         solve(half[0], half[1], intrinsics, board_in_table(0.0, 0.36, 0.0))
     import cv2
@@ -87,7 +88,7 @@ def test_the_cli_prints_the_pose_checks_it_and_writes_the_board(tmp_path, capsys
 
     doc = json.loads(capsys.readouterr().out)
     sc = _realistic(4)
-    truth = frame(sc)[3]
+    truth = board_frame(sc)[3]
     from mog_drake.camera import camera_pose
 
     drawn = pose_error(camera_pose(sc.camera), truth)[0] * 1e3

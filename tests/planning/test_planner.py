@@ -327,7 +327,7 @@ def test_planner_system_does_not_repeat_its_last_grasp():
     from pydrake.systems.analysis import Simulator
 
     from mog_drake.config import LatencyConfig
-    from mog_drake.systems.perception import Perceived
+    from mog_drake.systems.messages import Perceived
     from mog_drake.systems.planner import PlannerSystem
 
     scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.15, 0.15, 0.0)])

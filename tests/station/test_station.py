@@ -254,9 +254,8 @@ def _controller_with_fixed_inputs(with_check=False):
     from pydrake.systems.analysis import Simulator
 
     from mog_drake.systems.controller import ControllerSystem
+    from mog_drake.systems.messages import Checked, Decision, Perceived
     from mog_drake.systems.motion import ArmMotion
-    from mog_drake.systems.perception import Checked, Perceived
-    from mog_drake.systems.planner import Decision
 
     sc = Scenario()
     m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
@@ -717,7 +716,7 @@ def test_the_planner_gives_up_on_an_unrecognised_blob_after_three_grasps():
     from mog_drake.planning.planner import GraspPlanner
     from mog_drake.planning.protocol import GraspResult
     from mog_drake.scenes import Scene, default_library
-    from mog_drake.systems.perception import Perceived
+    from mog_drake.systems.messages import Perceived
     from mog_drake.systems.planner import PlannerSystem
 
     class LiftsAnything:  # a grasp always exists: only the planner system's count ends it

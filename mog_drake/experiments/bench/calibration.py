@@ -13,8 +13,9 @@ def bench_calibration(scenario=None, draws: int = 20, large: int = 5, seed: int 
     (the scenario's camera.X_PB against the rendering camera), and after (the pose solved from
     the board against it), in mm and deg; the fit's figures."""
     from mog_drake.camera import camera_pose
-    from mog_drake.hardware.calibration import board_in_table, frame, pose_error, solve
+    from mog_drake.hardware.calibration import board_in_table, pose_error, solve
     from mog_drake.scenario import ClutteredScene, load_scenario
+    from mog_drake.station.board import board_frame
 
     base = load_scenario(scenario or "realistic")
     rows = []
@@ -26,7 +27,7 @@ def bench_calibration(scenario=None, draws: int = 20, large: int = 5, seed: int 
             camera_tilt_deg=base.realism.camera_tilt_deg * scale,
         )
         sc = replace(base, scene=ClutteredScene(seed=k), realism=real)
-        rgb, depth, intrinsics, truth = frame(sc)
+        rgb, depth, intrinsics, truth = board_frame(sc)
         cal = solve(rgb, depth, intrinsics, board_in_table(0.0, 0.0, 0.0))
         before, after = pose_error(camera_pose(sc.camera), truth), pose_error(cal.X_TC, truth)
         rows.append(

@@ -58,9 +58,10 @@ def bench_perception(
         perceiver = sc.perceiver()
         X_WC = camera_pose(sc.camera)
         if calibrate:
-            from mog_drake.hardware.calibration import board_in_table, frame, solve
+            from mog_drake.hardware.calibration import board_in_table, solve
+            from mog_drake.station.board import board_frame
 
-            X_WC = solve(*frame(sc)[:3], board_in_table(0.0, 0.0, 0.0)).X_TC
+            X_WC = solve(*board_frame(sc)[:3], board_in_table(0.0, 0.0, 0.0)).X_TC
         for level in levels:
             depth = depth_artefacts(
                 clean,

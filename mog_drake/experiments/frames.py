@@ -1,0 +1,112 @@
+"""Sweeps' results as pandas DataFrames, for notebooks (pandas: the `notebooks` extra).
+
+* `runs`: one row per run (a table in a mode) with its summary;
+* `attempts`: one row per grasp attempt, with its outcome and the cause of a failure;
+* `paired`: two sweeps of the same tables, per measure their paired difference;
+* `study`: the uncertainty study's levels, one row per level and mode.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+# Outcomes of an attempt, as `attempts` names them.
+OUTCOMES = ("taken", "part taken", "dropped on the way", "closed on nothing", "lifted nothing")
+# A jaw opening after the close below this (m): the jaws met with nothing between them.
+EMPTY_JAWS = 0.002
+
+
+def _pd():
+    try:
+        import pandas as pd
+    except ImportError:
+        from mog_drake.errors import MogError
+
+        raise MogError("DataFrames need pandas: pip install 'mog_drake[notebooks]'") from None
+    return pd
+
+
+def _records(folder) -> list[dict]:
+    from mog_drake.experiments.sweep import load_results
+
+    return list(load_results(Path(folder) / "results.jsonl", repair=False).values())
+
+
+def runs(folder):
+    """One row per run of a picking sweep: its table, mode and summary."""
+    pd = _pd()
+    rows = [
+        {"key": r["key"], "table": r["scene"], "mode": r["mode"], **r["summary"]} for r in _records(folder)
+    ]
+    return pd.DataFrame(rows).sort_values(["mode", "table"]).reset_index(drop=True)
+
+
+def outcome(a: dict) -> str:
+    """An attempt's outcome (OUTCOMES): everything it meant to take in the bin, part of it,
+    lifted and lost on the way, the jaws closed with nothing between them (the objects were
+    not where perception put them, or were pushed away), or nothing lifted though the jaws
+    held something (it slipped out at the lift)."""
+    picked, expected = a.get("picked") or 0, len(a.get("expected") or a.get("group") or ())
+    carried = len(a.get("carried") or ())
+    if picked >= max(expected, 1):
+        return "taken"
+    if picked > 0:
+        return "part taken"
+    if carried > 0:
+        return "dropped on the way"
+    if (a.get("held_width") or 0.0) < EMPTY_JAWS:
+        return "closed on nothing"
+    return "lifted nothing"
+
+
+def attempts(folder):
+    """One row per grasp attempt of a picking sweep: when (simulated s), the group's size and
+    shapes, what it meant to take, what it took, its planning time and its outcome."""
+    pd = _pd()
+    rows = []
+    for r in _records(folder):
+        for k, a in enumerate(r["attempts"], start=1):
+            rows.append(
+                {
+                    "key": r["key"],
+                    "table": r["scene"],
+                    "mode": r["mode"],
+                    "attempt": k,
+                    "start_s": a["start"],
+                    "end_s": a.get("end"),
+                    "objects": len(a["group"]),
+                    "shapes": " + ".join(a.get("shapes") or ()),
+                    "expected": len(a.get("expected") or a["group"]),
+                    "picked": a.get("picked"),
+                    "planning_s": a.get("planning_time"),
+                    "held_width_mm": 1e3 * (a.get("held_width") or 0.0),
+                    "outcome": outcome(a),
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def paired(folder_a, folder_b):
+    """Per measure, B - A on the tables both sweeps ran (each mode): the mean difference and
+    its 95 % interval (`picking_compare.compare`)."""
+    from mog_drake.experiments.picking_compare import compare
+
+    pd = _pd()
+    doc = compare(_records(folder_a), _records(folder_b))
+    return pd.DataFrame(doc["rows"])
+
+
+def study(levels: dict):
+    """The uncertainty study: {level: sweep folder} -> one row per level and mode (success %,
+    picked %, objects per successful grasp, PPH, with their 95 % intervals)."""
+    from mog_drake.experiments.picking_eval import summarize
+
+    pd = _pd()
+    rows = []
+    for level, folder in levels.items():
+        res = _records(folder)
+        if not res:
+            continue
+        for row in summarize(res, sorted({r["mode"] for r in res}))["rows"]:
+            rows.append({"level": level, **row})
+    return pd.DataFrame(rows)
