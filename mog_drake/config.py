@@ -3,39 +3,9 @@
 them from here. (No ``from __future__ import annotations``: Drake's YAML reads the field
 types.)"""
 
-import threading
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 LATENCY_MODES = ("measured", "cpu", "fixed")
-
-
-class JobClock:
-    """The clock a job's latency is measured on (`mog_drake.systems.jobs`): ``WALL`` (the wall
-    clock; a job's time counts from its request, queueing included) or ``CPU`` (the CPU time
-    of the job's own thread, from its start)."""
-
-    def __init__(self, name: str, from_request: bool, reader: Callable[[], Callable[[], float]]):
-        self.name = name
-        self.from_request = from_request  # the job's time counts from its request, not its start
-        self._reader = reader
-
-    def reader(self) -> Callable[[], float]:
-        """The calling thread's time on this clock, as a function any thread can read."""
-        return self._reader()
-
-    def __repr__(self) -> str:
-        return f"JobClock({self.name})"
-
-
-def _this_threads_cpu() -> Callable[[], float]:
-    clock_id = time.pthread_getcpuclockid(threading.get_ident())
-    return lambda: time.clock_gettime(clock_id)
-
-
-WALL = JobClock("wall", True, lambda: time.perf_counter)
-CPU = JobClock("cpu", False, _this_threads_cpu)
 
 
 @dataclass
@@ -53,12 +23,6 @@ class LatencyConfig:
         if self.mode == "fixed":
             return getattr(self, f"{stage}_s")
         return None
-
-    @property
-    def clock(self) -> JobClock:
-        """What a measured latency is counted on: the job thread's CPU time (``cpu``), else
-        the wall clock."""
-        return CPU if self.mode == "cpu" else WALL
 
 
 @dataclass

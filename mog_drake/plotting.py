@@ -94,6 +94,7 @@ def scene_figure(
     order=None,
     top: int = 3,
     gripper: GripperGeometry | None = None,
+    *,
     title: str | None = None,
     grasp=None,
 ):

@@ -146,7 +146,7 @@ class Scenario:
     table: list[float] = field(default_factory=lambda: [-0.30, 0.30, -0.40, 0.40])
     time_limit: float = 600.0  # s of simulated robot time
     # The simulated station: objects at rest out of reach of the gripper and of anything
-    # moving leave the physics until something could reach them (`station.sleep`).
+    # moving leave the physics until something could reach them (`station.speed`).
     sleep: bool = True
     # How the simulated world differs from the planner's model (`mog_drake.sim.realism`):
     # nothing by default; models/realistic.yaml sets a real cell's calibration, sensing and

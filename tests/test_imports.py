@@ -94,3 +94,17 @@ def test_the_scenario_imports_nothing_from_the_systems():
     for name in ("mog_drake.scenario", "mog_drake.config"):
         upward = sorted(m for m in _imports(files[name], set(files)) if m.startswith("mog_drake.systems"))
         assert upward == [], (name, upward)
+
+
+def test_no_function_takes_more_than_six_positional_parameters():
+    """Past six, a call reads as a row of values: the rest are keyword-only."""
+    found = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef):
+                names = [
+                    a.arg for a in node.args.posonlyargs + node.args.args if a.arg not in ("self", "cls")
+                ]
+                if len(names) > 6:
+                    found.append(f"{_module_name(path)}.{node.name}: {len(names)}")
+    assert not found, found

@@ -164,7 +164,13 @@ def cmd_scene_generate(args) -> None:
     from mog_drake.scenes.generators import generate_scene
 
     scene = generate_scene(
-        args.kind, args.seed, library(args), args.row_class, args.objects, args.inventory, args.clusters
+        args.kind,
+        args.seed,
+        library(args),
+        args.row_class,
+        args.objects,
+        args.inventory,
+        clusters=args.clusters,
     )
     if args.shapes:
         scene.shapes_file = str(Path(args.shapes[-1]).resolve())
@@ -227,7 +233,14 @@ def cmd_candidates(args) -> None:
     scene = load_scene(args)
     group, source = scene.chosen_group(args.group)
     doc, text = candidates_report(
-        scene, group, source, GripperGeometry(), args.positions, args.orientations, args.limit, args.all
+        scene,
+        group,
+        source,
+        GripperGeometry(),
+        args.positions,
+        args.orientations,
+        limit=args.limit,
+        all_rows=args.all,
     )
     emit(args, {"scene": args.scene, **doc}, text)
 

@@ -139,5 +139,5 @@ def cmd_diagram(args) -> None:
     from mog_drake.plotting import write_diagram
     from mog_drake.systems.pick import MakePickDiagram
 
-    out = write_diagram(MakePickDiagram(_scenario(args))[0], args.output)
+    out = write_diagram(MakePickDiagram(_scenario(args)).diagram, args.output)
     emit(args, {"output": str(out)}, f"wrote {out}")

@@ -275,6 +275,7 @@ def run(
     scenes_per_class: int,
     seed: int,
     out_dir,
+    *,
     jobs: int = 1,
     ray_address=None,
     progress: bool = True,
@@ -295,7 +296,7 @@ def run(
     )
     tasks = row_tasks(classes, scenes_per_class, seed, n_positions, n_orientations)
     results = run_sweep(
-        tasks, conditions_worker, out_dir, jobs, ray_address, "conditions", progress, valid_row
+        tasks, conditions_worker, out_dir, jobs, ray_address, "conditions", progress=progress, valid=valid_row
     )
     summary = summarize(results)
     summary["false_negatives"] = explain_false_negatives(summary["false_negatives"])

@@ -204,6 +204,7 @@ def run(
     out_dir,
     objects: int = 33,
     time_limit: float = 900.0,
+    *,
     jobs: int = 1,
     ray_address=None,
     progress: bool = True,
@@ -233,7 +234,15 @@ def run(
     check_params(out_dir, params, growable=("scenes", "modes"))
     todo = tasks(scenes, modes, seed, objects, time_limit, scenario)
     results = run_sweep(
-        todo, picking_worker, out_dir, jobs, ray_address, "picking", progress, valid_run, note=note
+        todo,
+        picking_worker,
+        out_dir,
+        jobs,
+        ray_address,
+        "picking",
+        progress=progress,
+        valid=valid_run,
+        note=note,
     )
     summary = summarize(results, modes)
     done = {r["key"] for r in results}

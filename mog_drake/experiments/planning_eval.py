@@ -131,6 +131,7 @@ def run(
     scenes_per_class: int,
     seed: int,
     out_dir,
+    *,
     methods=PAPER_METHODS,
     jobs: int = 1,
     ray_address=None,
@@ -164,8 +165,8 @@ def run(
         jobs,
         ray_address,
         "planner",
-        progress,
-        lambda r: isinstance(r.get("class"), int) and isinstance(r.get("methods_results"), dict),
+        progress=progress,
+        valid=lambda r: isinstance(r.get("class"), int) and isinstance(r.get("methods_results"), dict),
     )
     return summarize(results, methods), results
 

@@ -185,6 +185,7 @@ def run_sweep(
     jobs: int = 1,
     ray_address: str | None = None,
     label: str = "sweep",
+    *,
     progress: bool = True,
     valid: Callable[[dict], bool] | None = None,
     note: str = "",

@@ -235,11 +235,11 @@ def evaluate_grasps(
         h_fmin=float(polys.d_fmin[group].sum()),
         collision_free=~collision,
         in_s=in_s,
-        h_fmin_columns=_columns(polys, group, P, bi, mi, need, gripper, B) if columns else None,
+        h_fmin_columns=_columns(polys, group, P, bi, mi, need, gripper=gripper, B=B) if columns else None,
     )
 
 
-def _columns(polys, group, P, bi, mi, need, gripper, B) -> np.ndarray:
+def _columns(polys, group, P, bi, mi, need, *, gripper, B) -> np.ndarray:
     """h_fmin_columns of each of B grasps: each group object's extent across the plates (y)
     within S; the group's objects swept in order of that extent's start, overlapping ones
     summed into a column; the largest sum kept."""

@@ -63,6 +63,7 @@ def candidates_report(
     gripper: GripperGeometry,
     positions: int,
     orientations: int,
+    *,
     limit: int,
     all_rows: bool,
 ) -> tuple[dict, str]:

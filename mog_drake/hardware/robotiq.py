@@ -316,6 +316,7 @@ class RobotiqDriver(LeafSystem):
         speed: float = 0.15,
         period: float = 0.05,
         dry_run: bool = False,
+        *,
         log: CommandLog | None = None,
         initial_width: float = OPEN_WIDTH,
         move_timeout: float = 5.0,

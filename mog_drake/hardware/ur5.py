@@ -46,6 +46,7 @@ class UR5Driver(LeafSystem):
         faults: FaultLatch,
         q_init,
         period: float = 0.008,
+        *,
         dry_run: bool = False,
         log: CommandLog | None = None,
         servo=(0.1, 300.0),

@@ -142,7 +142,7 @@ class InstanceFitter:
             < 2 * self.config.top_band
         )
 
-    def _split(self, k: int, im: EvidenceImage, labels, label: int, idx, n_est: int, colour, rng) -> list:
+    def _split(self, k: int, im: EvidenceImage, labels, label: int, idx, n_est: int, *, colour, rng) -> list:
         """Fits ``n_est`` touching instances of shape ``k`` to component ``label`` (its flat
         pixel indices ``idx``): the objects of the best split, their pixels left explained."""
         cfg = self.config
@@ -227,7 +227,9 @@ class InstanceFitter:
         score = PolygonScore(evidence, origin, im.cam.plane(h), v0, self._edge_samples(k, im))
         return FitWindow(score, rows, cols, origin, lower, np.asarray(centre, float), k)
 
-    def _fit(self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centre, start=None, spread=0.0):
+    def _fit(
+        self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centre, start=None, *, spread=0.0
+    ):
         """Fits shape ``k`` to the unexplained pixels of component ``label`` (of the image
         ``labels``) near ``centre``: from the pose ``start`` if given, else from the centre at
         angles over the shape's symmetry (and from centres up to ``spread`` m from it in x

@@ -205,6 +205,7 @@ class Perceiver(InstanceFitter):
         intrinsics,
         tol: float = 0.004,
         settle_px: int = 2,
+        *,
         still: bool = False,
     ) -> int:
         """How many pixels of the perceived table (its rectangle less the ignored regions, as
@@ -337,7 +338,7 @@ class Perceiver(InstanceFitter):
                 found_by[f.k].append(SceneObject(self.names[f.k], *f.pose))
             for k, labels, colour, several in pending:
                 for label, idx, n_est in several:
-                    found_by[k].extend(self._split(k, im, labels, label, idx, n_est, colour, rng))
+                    found_by[k].extend(self._split(k, im, labels, label, idx, n_est, colour=colour, rng=rng))
             pending.clear()
             wins.clear()
 

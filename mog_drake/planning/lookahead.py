@@ -28,6 +28,7 @@ def lookahead(
     spec: PlannerSpec,
     rng=None,
     avoid=(),
+    *,
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
 ) -> tuple[FailedGroup | FailedPush | PaidPush, ...]:
@@ -47,7 +48,14 @@ def lookahead(
     if len(rest) == 0:
         return ()
     ahead = next_pick(
-        rest, planner, spec, rng, avoid, decision.failures, grasp_unrecognised, pushes_left=pushes_left
+        rest,
+        planner,
+        spec,
+        rng,
+        avoid,
+        decision.failures,
+        grasp_unrecognised=grasp_unrecognised,
+        pushes_left=pushes_left,
     )
     memory = list(ahead.failures)
     found = ahead.plans[-1] if ahead.plans else None  # Alg. 1's grasp (a push's too)

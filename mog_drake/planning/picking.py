@@ -84,6 +84,7 @@ def next_pick(
     rng: np.random.Generator | None = None,
     avoid=(),
     failures: tuple[FailedGroup | FailedPush | PaidPush, ...] | None = None,
+    *,
     grasp_unrecognised: bool = True,
     pushes_left: int = 0,
     adjacent: float = 0.0,
@@ -101,11 +102,23 @@ def next_pick(
     spec = spec or PlannerSpec()
     spec.check()
     if spec.mode == "push-mog":
-        return _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude)
+        return _push_mog(
+            scene,
+            planner,
+            spec,
+            rng,
+            avoid,
+            failures,
+            grasp_unrecognised=grasp_unrecognised,
+            pushes_left=pushes_left,
+            exclude=exclude,
+        )
     mode, last_resort = spec.mode, spec.loop.last_resort
     t0 = time.perf_counter()
     if len(scene) == 0:
-        return _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0)
+        return _blobs(
+            scene, planner, spec, rng, avoid, failures, grasp_unrecognised=grasp_unrecognised, t0=t0
+        )
     if mode == "mog":
         groups = _mog_groups(scene, planner, spec, adjacent)
     else:
@@ -154,7 +167,7 @@ def next_pick(
     return decision
 
 
-def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
+def _push_mog(scene, planner, spec, rng, avoid, failures, *, grasp_unrecognised, pushes_left, exclude):
     """push-mog: Alg. 1's decision on its groups and the adjacent ones, then the pushes worth
     more than it (`consider_pushes`)."""
     d = next_pick(
@@ -164,7 +177,7 @@ def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pu
         rng,
         avoid,
         failures,
-        grasp_unrecognised,
+        grasp_unrecognised=grasp_unrecognised,
         adjacent=ADJACENT_GAP,
         exclude=exclude,
     )
@@ -174,12 +187,12 @@ def _push_mog(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, pu
         and not d.unrecognised
         and d.status in ("grasp", "no_grasp")
     ):
-        consider_pushes(scene, planner, spec, d, rng, avoid, failures)
+        consider_pushes(scene, planner, spec, d, rng, avoid, memory=failures)
     d.lone = lone_reason(scene, planner, spec, d, pushes_left)
     return d
 
 
-def _blobs(scene, planner, spec, rng, avoid, failures, grasp_unrecognised, t0) -> PickDecision:
+def _blobs(scene, planner, spec, rng, avoid, failures, *, grasp_unrecognised, t0) -> PickDecision:
     """No library object left: a clear table, or the unrecognised blobs planned as prisms.
     (Something the perception could not recognise is not a clear table.)"""
     blobs = unrecognised_scene(scene) if grasp_unrecognised else None

@@ -46,7 +46,9 @@ def paid_push(before, d: PickDecision, gripper) -> PaidPush | None:
     return PaidPush(d.push, tuple(d.group), around, tuple(d.expected), np.asarray(d.grasp), after)
 
 
-def _same_push(target: int, toward: int, f_group, f_around, p: Push, group, around) -> dict[int, int] | None:
+def _same_push(
+    target: int, toward: int, f_group, f_around, p: Push, group, *, around
+) -> dict[int, int] | None:
     """Old id -> new id if a remembered push (of ``target`` to ``toward``, setting up
     ``f_group``, with ``f_around`` around it) is push ``p`` of ``group`` now, every object
     around it where it was (``around``, now); else None."""
@@ -61,7 +63,7 @@ def _replay_push(known, p: Push, group, around, scene, avoid):
     was) in ``scene``'s ids: (its entry, the push, what its grasp lifted, the grasp, the table
     it leaves); None if there is none, or its grasp repeats one to avoid."""
     for f in known:
-        ids = _same_push(f.push.target, f.push.toward, f.group, f.around, p, group, around)
+        ids = _same_push(f.push.target, f.push.toward, f.group, f.around, p, group, around=around)
         if ids is None:
             continue
         if repeats([f.grasp], avoid)[0]:
@@ -76,7 +78,7 @@ def _replay_push(known, p: Push, group, around, scene, avoid):
 
 
 def consider_pushes(
-    scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid, memory=None
+    scene, planner: GraspPlanner, spec: PlannerSpec, d: PickDecision, rng, avoid, *, memory=None
 ) -> None:
     """push-mog: turns decision ``d`` (Alg. 1's) into a push when its grasp lifts fewer than
     ``pushes.below`` objects and the push and the grasp it sets up are expected to take more
@@ -213,6 +215,6 @@ def _did_not_pay(known, p, group, around, now_rate: float, push_time: float) -> 
     it was) that would not pay now either: it failed, or what its grasp lifted over
     ``push_time`` does not beat ``now_rate`` (objects per second of the grasp now)."""
     for f in known:
-        if _same_push(f.target, f.toward, f.group, f.around, p, group, around) is not None:
+        if _same_push(f.target, f.toward, f.group, f.around, p, group, around=around) is not None:
             return f.lifted == 0 or f.lifted / push_time <= now_rate
     return False

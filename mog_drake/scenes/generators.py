@@ -169,6 +169,7 @@ def generate_scene(
     row_class: int | None = None,
     n_objects: int | None = None,
     inventory: str = "isrr33",
+    *,
     clusters: int = 4,
 ) -> Scene:
     """A seeded ``kind`` scene: "row" (class ``row_class``, Sec. 7.2) or "cluttered"

@@ -136,6 +136,7 @@ def add_table(
     thickness=0.05,
     name="table",
     collision: str | None = None,
+    *,
     X_WT: RigidTransform | None = None,
 ):
     """A rigid table whose top is the plane z = 0 of the table frame T (by default the world).
@@ -167,6 +168,7 @@ def add_bin(
     inner=(0.25, 0.20),
     depth=0.10,
     wall=0.01,
+    *,
     name="bin",
 ):
     """An open-top bin welded to the world: a floor and four walls (rigid)."""
@@ -250,6 +252,7 @@ def add_prism(
     contact: ContactConfig,
     friction: float = 1.0,
     mass: float = 1.0,
+    *,
     size: float = 0.0,
     seen=None,
 ):

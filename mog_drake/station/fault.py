@@ -34,7 +34,9 @@ def fault_line(handles, x, t: float, t_good: float) -> str:
     )
 
 
-def save_fault(handles, scenario_yaml: str, x, t_good: float, asleep, retired, line: str, name: str) -> Path:
+def save_fault(
+    handles, scenario_yaml: str, x, t_good: float, asleep, retired, *, line: str, name: str
+) -> Path:
     """The station's last finite state saved for a replay (`numpy.load`): the plant's
     positions and velocities ``x`` at ``t_good``, the objects asleep and retired, the scene
     and scenario as YAML, and the fault's line. Returns the file's path

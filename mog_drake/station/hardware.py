@@ -15,7 +15,7 @@ from mog_drake.scenario import ReplaySource
 
 
 class HardwareHandles:
-    def __init__(self, faults, ur5, gripper, camera, scene=None, connections=None, log=None):
+    def __init__(self, faults, ur5, gripper, camera, scene=None, connections=None, *, log=None):
         self.faults, self.ur5, self.gripper, self.camera = faults, ur5, gripper, camera
         self.camera_intrinsics = None  # the camera source's own (fx, fy, cx, cy), once built
         self.scene = scene
@@ -104,18 +104,37 @@ def MakeHardwareStation(scenario, rtde_control=None, rtde_receive=None, gripper_
             if reason:
                 raise HardwareFault(f"UR5: the arm starts where it may not be: {reason}")
             gripper.activate()
-        diagram = _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_init, log)
+        diagram = _build(
+            scenario,
+            hw,
+            handles,
+            control,
+            receive,
+            gripper,
+            safety=safety,
+            faults=faults,
+            q_init=q_init,
+            log=log,
+        )
     except BaseException:
         handles.shutdown()
         raise
     return diagram, handles
 
 
-def _build(scenario, hw, handles, control, receive, gripper, safety, faults, q_init, log):
+def _build(scenario, hw, handles, control, receive, gripper, *, safety, faults, q_init, log):
     """The station's Diagram: the two drivers and the camera source, ports by the contract."""
     builder = DiagramBuilder()
     ur5_driver = UR5Driver(
-        control, receive, safety, faults, q_init, hw.servo_period, hw.dry_run, log, stale_after=hw.stale_after
+        control,
+        receive,
+        safety,
+        faults,
+        q_init,
+        hw.servo_period,
+        dry_run=hw.dry_run,
+        log=log,
+        stale_after=hw.stale_after,
     )
     handles.ur5 = ur5_driver
     ur5 = builder.AddNamedSystem("ur5_driver", ur5_driver)

@@ -1,10 +1,6 @@
 """Scoring from the simulated station's ground truth: what is in the bin, where the rest lies.
 It stays outside the application Diagram: the application never reads ground truth."""
 
-import numpy as np
-from pydrake.math import RigidTransform
-from pydrake.multibody.math import SpatialVelocity
-
 from mog_drake.camera import camera_sees
 from mog_drake.perception import within_reach
 from mog_drake.scenario import Scenario
@@ -12,7 +8,7 @@ from mog_drake.scenario import Scenario
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
     """Scoring only (ground truth): objects whose centre lies inside the bin's walls, plus
-    those already retired from it (see `BinRetirement`)."""
+    those already retired from it (see `station.speed.BinRetirement`)."""
     cx, cy = scenario.bin.center
     hx, hy = scenario.bin.inner[0] / 2, scenario.bin.inner[1] / 2
     out = []
@@ -24,39 +20,6 @@ def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=())
         if abs(p[0] - cx) <= hx and abs(p[1] - cy) <= hy and p[2] < scenario.bin.depth + 0.05:
             out.append(i)
     return out
-
-
-class BinRetirement:
-    """Simulation speed, not physics: an object at rest in the bin is taken out of the scene.
-
-    A pile in the bin is the costliest contact in the station (`mog-drake bench station`: 33
-    prisms piled in the bin cost over 4x the same 33 on the table, and close to 20x the
-    station once the pile is retired), and
-    nothing the robot does depends on it: the bin is outside the camera's view and the robot
-    only drops objects into it. Retired objects are parked far above the station, each in its
-    own spot, put back there with zero velocity at every check (they fall freely in between),
-    and counted in the bin for good. The pile is gone, so a later drop lands on the bin floor;
-    a Meshcat replay shows retired objects leave the bin."""
-
-    PARK = np.array([20.0, 20.0, 50.0])  # m, far from everything, above the table's half-space
-
-    def __init__(self, plant, bodies, scenario: Scenario, rest_speed: float = 0.02):
-        self.plant, self.bodies, self.scenario = plant, bodies, scenario
-        self.rest_speed = rest_speed
-        self.retired: list[int] = []
-
-    def update(self, plant_context) -> None:
-        plant = self.plant
-        for i in objects_in_bin(plant, plant_context, self.bodies, self.scenario, self.retired):
-            if i in self.retired:
-                continue
-            v = plant.EvalBodySpatialVelocityInWorld(plant_context, self.bodies[i])
-            if np.linalg.norm(v.translational()) < self.rest_speed:
-                self.retired.append(i)
-        for k, i in enumerate(self.retired):
-            X = RigidTransform(self.PARK + [0.3 * k, 0.0, 0.0])
-            plant.SetFreeBodyPose(plant_context, self.bodies[i], X)
-            plant.SetFreeBodySpatialVelocity(plant_context, self.bodies[i], SpatialVelocity.Zero())
 
 
 def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict:

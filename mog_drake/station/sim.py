@@ -165,7 +165,7 @@ ARM_LEVER = 1.1  # m: the UR5's reach (0.85 m) plus the gripper's length, with r
 class StationHandles:
     """What tests and the simulation driver may need beyond the ports."""
 
-    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, arm_accel):
+    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, *, arm_accel):
         self.camera_intrinsics = camera_intrinsics
         self.arm_accel = arm_accel  # m/s^2, bound on any point of the arm's acceleration
         self.plant = plant
@@ -175,9 +175,9 @@ class StationHandles:
         self.scene = scene
 
     def sleep(self, period: float):
-        """Objects at rest out of everything's reach leave the physics (`station.sleep.Sleep`),
+        """Objects at rest out of everything's reach leave the physics (`station.speed.Sleep`),
         looked at every ``period`` s."""
-        from mog_drake.station.sleep import Sleep
+        from mog_drake.station.speed import Sleep
 
         gripper = [self.plant.GetBodyByName(n, self.robot) for n in ("palm", "left_finger", "right_finger")]
         radii = {i: self.scene.shape(i).reach for i in self.bodies}
@@ -365,7 +365,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None, board=None):
     r = scenario.robot
     accel = 4.0 * (r.max_joint_acceleration + r.max_joint_speed**2) * ARM_LEVER
     return diagram, StationHandles(
-        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), accel
+        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), arm_accel=accel
     )
 
 

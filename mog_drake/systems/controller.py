@@ -87,6 +87,7 @@ class ControllerSystem(LeafSystem):
         bin_height: float,
         open_width: float = OPEN_WIDTH,
         close_time: float = 0.45,
+        *,
         time_limit: float = 600.0,
         config: ControllerConfig | None = None,
         arm_view=None,
@@ -212,7 +213,7 @@ class ControllerSystem(LeafSystem):
         try:
             new.plan = self._motion.pick_plan(dec.grasp, s.q_hold, *self._bin, q_home=self._home)
         except MogError as e:
-            self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e)
+            self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e=e)
             return
         new.mode, new.t_mode, new.unreachable = "approach", t, 0
         new.attempts.append(
@@ -271,7 +272,7 @@ class ControllerSystem(LeafSystem):
         else:
             new.mode, new.check = "check", new.requested
 
-    def _skip(self, new: ControllerState, s: ControllerState, d, t: float, kind: str, what, e) -> None:
+    def _skip(self, new: ControllerState, s: ControllerState, d, t: float, kind: str, what, *, e) -> None:
         """Skips decision ``d``'s grasp or push (``kind``), which the arm cannot reach: logged,
         and the arm observes again; max_unreachable in a row end the run."""
         entry = {"t": t, kind: what, "reason": str(e), "planning_time": d.decision.planning_time}
@@ -317,7 +318,7 @@ class ControllerSystem(LeafSystem):
             new.plan = self._motion.push_plan(dec.push, s.q_hold, self._push_speed, q_home=self._home)
             new.plan["then"] = dec if dec.grasp is not None else None
         except MogError as e:
-            self._skip(new, s, d, t, "push", dec.push.to_dict(), e)
+            self._skip(new, s, d, t, "push", dec.push.to_dict(), e=e)
             return
         new.mode, new.t_mode, new.unreachable, new.gripper = "push_approach", t, 0, 0.0
         new.pushes.append(

@@ -27,11 +27,58 @@ latency is longer than the simulated time so far. Visibility is exact to one upd
 visible at the first update after it is ready and its latency has passed.
 """
 
+import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
 
-from mog_drake.config import CPU, WALL, JobClock
+from mog_drake.config import LatencyConfig
+
+
+class JobClock:
+    """The clock a job's latency is measured on (`mog_drake.systems.jobs`): ``WALL`` (the wall
+    clock; a job's time counts from its request, queueing included) or ``CPU`` (the CPU time
+    of the job's own thread, from its start)."""
+
+    def __init__(self, name: str, from_request: bool, reader: Callable[[], Callable[[], float]]):
+        self.name = name
+        self.from_request = from_request  # the job's time counts from its request, not its start
+        self._reader = reader
+
+    def reader(self) -> Callable[[], float]:
+        """The calling thread's time on this clock, as a function any thread can read."""
+        return self._reader()
+
+    def __repr__(self) -> str:
+        return f"JobClock({self.name})"
+
+
+def _this_threads_cpu() -> Callable[[], float]:
+    clock_id = time.pthread_getcpuclockid(threading.get_ident())
+    return lambda: time.clock_gettime(clock_id)
+
+
+WALL = JobClock("wall", True, lambda: time.perf_counter)
+CPU = JobClock("cpu", False, _this_threads_cpu)
+
+
+def clock_of(latency: LatencyConfig) -> JobClock:
+    """What a measured latency is counted on: the job thread's CPU time (``cpu``), else the
+    wall clock."""
+    return CPU if latency.mode == "cpu" else WALL
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """What a finished job's future holds: its value and its times (s)."""
+
+    value: object
+    wall: float  # from the request, queueing included
+    cpu: float  # the job's own thread's CPU time
+    waited: float  # for the job before it, on a clock that counts from the start
+    spent: float  # on the job's clock
 
 
 class Job:
@@ -46,6 +93,7 @@ class Job:
         t_submit: float,
         info=None,
         clock: JobClock = WALL,
+        *,
         started: dict | None = None,
     ):
         self.future, self.t_request, self.counter, self.info = future, t_request, counter, info
@@ -101,21 +149,21 @@ class Job:
 
     def wall_time(self) -> float:
         """The job's latency on the wall clock, request to result (s); it must be done."""
-        return self.future.result()[1]
+        return self.future.result().wall
 
     def cpu_time(self) -> float:
         """The CPU time of the job's thread while it ran (s); it must be done."""
-        return self.future.result()[2]
+        return self.future.result().cpu
 
     def clock_time(self) -> float:
         """The job's time on its clock while it ran (s; the wall time on the wall clock); it
         must be done."""
-        return self.future.result()[4]
+        return self.future.result().spent
 
     def waited(self) -> float:
         """Simulated time the job waited for its thread beyond its own clock (s; see
         `Worker.submit`); it must be done."""
-        return self.future.result()[3]
+        return self.future.result().waited
 
     def latency(self) -> float:
         """The job's measured latency on its clock, its waits included (s); it must be
@@ -123,7 +171,7 @@ class Job:
         return (self.wall_time() if self.clock.from_request else self.clock_time()) + self.waited()
 
     def result(self):
-        return self.future.result()[0]
+        return self.future.result().value
 
 
 class Worker:
@@ -157,9 +205,11 @@ class Worker:
             out = fn(*args)
             wall, c1 = time.perf_counter() - t_submit, cpu()
             spent = c1 - cpu0 if now is cpu else now() - t0
-            return out, wall, c1 - cpu0, late, spent
+            return JobOutcome(out, wall, c1 - cpu0, late, spent)
 
-        self._last = Job(self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started)
+        self._last = Job(
+            self._pool.submit(run), t_request, counter, t_submit, info, self._clock, started=started
+        )
         return self._last
 
     def shutdown(self) -> None:

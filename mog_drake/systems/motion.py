@@ -48,6 +48,7 @@ class ArmMotion:
         config: MotionConfig | None = None,
         finger_height: float = 0.040,
         finger_clearance: float = 0.002,
+        *,
         q_home=None,
     ):
         """``finger_height``: the fingertips below the palm (m); ``finger_clearance``: the

@@ -21,7 +21,7 @@ from pydrake.systems.sensors import ImageDepth32F, ImageRgba8U
 
 from mog_drake.config import LatencyConfig
 from mog_drake.perception import Perceiver
-from mog_drake.systems.jobs import Worker
+from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Checked, Perceived, Slot
 
 
@@ -49,6 +49,7 @@ class PerceptionSystem(LeafSystem):
         period: float = 0.01,
         latency: LatencyConfig | None = None,
         block: bool = True,
+        *,
         change_pixels: int = 40,
         change_depth: float = 0.004,
         still_dt: float = 0.1,
@@ -63,7 +64,7 @@ class PerceptionSystem(LeafSystem):
         self._block = block
         self._change = (change_pixels, change_depth)
         self._still = (still_dt, still_max)
-        self._worker = Worker("perception", latency.clock)
+        self._worker = Worker("perception", clock_of(latency))
         self._rgb = self.DeclareAbstractInputPort("camera.rgb_image", AbstractValue.Make(ImageRgba8U()))
         self._depth = self.DeclareAbstractInputPort("camera.depth_image", AbstractValue.Make(ImageDepth32F()))
         self._request = self.DeclareVectorInputPort("request", 1)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from mog_drake.camera import camera_pose
 from mog_drake.errors import HardwareFault, StationFault, stop_on_signals
@@ -16,7 +17,8 @@ from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
-from mog_drake.station.scoring import BinRetirement, objects_in_bin, where_left
+from mog_drake.station.scoring import objects_in_bin, where_left
+from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
 from mog_drake.systems.pacer import WallClockPacer
@@ -60,8 +62,23 @@ def arm_view(scenario: Scenario, intrinsics) -> ArmView:
     )
 
 
-def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None):
-    """Wires the application to a station by port name. Returns (diagram, parts)."""
+@dataclass(frozen=True)
+class PickDiagram:
+    """The built pick Diagram and its named systems (`handles`: the station's plant, scene and
+    devices, as MakeStation returns them)."""
+
+    diagram: Diagram
+    station: Diagram
+    handles: object
+    perception: PerceptionSystem
+    planner: PlannerSystem
+    controller: ControllerSystem
+
+
+def MakePickDiagram(
+    scenario: Scenario, scene=None, meshcat=None, verifier=None, hardware_clients=None
+) -> PickDiagram:
+    """Wires the application to a station by port name."""
     station, handles = MakeStation(scenario, scene, meshcat, hardware_clients)
     from mog_drake.scenes import default_library
 
@@ -140,13 +157,7 @@ def MakePickDiagram(scenario: Scenario, scene=None, meshcat=None, verifier=None,
     builder.Connect(controller.GetOutputPort("gripper.position"), station.GetInputPort("gripper.position"))
     diagram = builder.Build()
     diagram.set_name("mog_drake_pick")
-    return diagram, {
-        "station": station,
-        "handles": handles,
-        "perception": perception,
-        "planner": planner_sys,
-        "controller": controller,
-    }
+    return PickDiagram(diagram, station, handles, perception, planner_sys, controller)
 
 
 def run_pick(
@@ -156,6 +167,7 @@ def run_pick(
     on_attempt=None,
     verifier=None,
     hardware_clients=None,
+    *,
     realtime: bool = False,
     retire_binned: bool = True,
 ) -> PickRun:
@@ -177,25 +189,28 @@ def run_pick(
     # (see mog_drake.systems.jobs).
     switch = sys.getswitchinterval()
     with stop_on_signals():  # SIGTERM and SIGHUP end the run through the finally below
-        diagram, parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
+        parts = MakePickDiagram(scenario, scene, meshcat, verifier, hardware_clients)
+        diagram = parts.diagram
         if meshcat is not None:
             from mog_drake.station.sim import frame_work_cell
 
             frame_work_cell(meshcat, scenario)
         try:
             sys.setswitchinterval(0.001)
-            return _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0)
+            return _run(
+                scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned=retire_binned, t0=t0
+            )
         except RuntimeError:
-            faults = getattr(parts["handles"], "faults", None)
+            faults = getattr(parts.handles, "faults", None)
             if faults:
                 raise HardwareFault(faults.reason) from None
             raise
         finally:
             sys.setswitchinterval(switch)
-            if hasattr(parts["handles"], "shutdown"):
-                parts["handles"].shutdown()  # the arm first: a running job may take seconds to end
-            parts["perception"].shutdown()
-            parts["planner"].shutdown()
+            if hasattr(parts.handles, "shutdown"):
+                parts.handles.shutdown()  # the arm first: a running job may take seconds to end
+            parts.perception.shutdown()
+            parts.planner.shutdown()
 
 
 SLEEP_PERIOD = 0.01  # s of simulated time between two looks at which objects may sleep
@@ -204,9 +219,9 @@ SLEEP_PERIOD = 0.01  # s of simulated time between two looks at which objects ma
 LANDING_S = 1.0
 
 
-def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned, t0) -> PickRun:
-    handles = parts["handles"]
-    controller = parts["controller"]
+def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binned, t0) -> PickRun:
+    handles = parts.handles
+    controller = parts.controller
     sim = Simulator(diagram)
     ApplySimulatorConfig(scenario.simulator, sim)
     pacer = None
@@ -241,7 +256,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
         except RuntimeError:
             if good is None:
                 raise
-            _fault(scenario, parts, ctx, run, good, sleep, gone, t0)
+            _fault(scenario, parts, ctx, run, good, sleep, gone=gone, t0=t0)
         if retire:
             retire.update(plant_ctx)
         if sleep:
@@ -292,22 +307,22 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, retire_binned,
     return _record(run, scenario, parts, ctx, gone, t0)
 
 
-def _fault(scenario, parts, ctx, run: PickRun, good, sleep, gone, t0: float):
+def _fault(scenario, parts, ctx, run: PickRun, good, sleep, *, gone, t0: float):
     """Ends a run whose station faulted: the record of what it did until then (`_record`, read
     from the last finite state ``good`` = (time, plant state)), that state saved to a file,
     and `StationFault` naming the time and the body."""
-    handles = parts["handles"]
+    handles = parts.handles
     t = ctx.get_time()
     t_good, x = good
     line = fault_line(handles, x, t, t_good)
     handles.plant.SetPositionsAndVelocities(handles.plant.GetMyMutableContextFromRoot(ctx), x)
     run.finished = "station fault"
-    run.skipped = list(parts["controller"].state(parts["controller"].GetMyContextFromRoot(ctx)).skipped)
+    run.skipped = list(parts.controller.state(parts.controller.GetMyContextFromRoot(ctx)).skipped)
     run = _record(run, scenario, parts, ctx, gone, t0)
     name = f"seed{getattr(scenario.scene, 'seed', 0)}-{scenario.planner.mode}-t{t:.3f}"
     asleep = sleep.asleep if sleep else ()
     try:
-        path = save_fault(handles, scenario_yaml(scenario), x, t_good, asleep, gone, line, name)
+        path = save_fault(handles, scenario_yaml(scenario), x, t_good, asleep, gone, line=line, name=name)
         where = f"; its last finite state is saved in {path}"
     except OSError as e:
         path, where = None, f"; its last finite state could not be saved ({e.strerror or e})"
@@ -317,7 +332,7 @@ def _fault(scenario, parts, ctx, run: PickRun, good, sleep, gone, t0: float):
 def _record(run: PickRun, scenario, parts, ctx, gone, t0: float) -> PickRun:
     """``run`` completed from the station and the controller: what is in the bin and where the
     rest lies (simulation only), and the times (``t0``: the run's start, perf_counter)."""
-    handles, controller = parts["handles"], parts["controller"]
+    handles, controller = parts.handles, parts.controller
     if handles.plant is not None:
         plant_ctx = handles.plant.GetMyContextFromRoot(ctx)
         in_bin = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
@@ -329,7 +344,7 @@ def _record(run: PickRun, scenario, parts, ctx, gone, t0: float) -> PickRun:
     s = controller.state(controller.GetMyContextFromRoot(ctx))
     run.robot_time, run.wait_perception, run.wait_planning = s.robot_time, s.wait_perception, s.wait_planning
     run.cycle_time = (s.t_end if s.t_end is not None else ctx.get_time()) - (s.t_first or 0.0)
-    run.perception_time = parts["perception"].wall_total(parts["perception"].GetMyContextFromRoot(ctx))
+    run.perception_time = parts.perception.wall_total(parts.perception.GetMyContextFromRoot(ctx))
     run.retakes = s.retakes
     run.push_time = s.push_time
     return run

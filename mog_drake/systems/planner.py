@@ -17,7 +17,7 @@ from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
 from mog_drake.planning.picking import next_pick, tally_misses
-from mog_drake.systems.jobs import Worker
+from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Decision, Perceived, Slot
 
 
@@ -66,8 +66,8 @@ class PlannerSystem(LeafSystem):
         latency = latency or LatencyConfig()
         self._latency = latency.of("planning")
         self._block = block
-        self._worker = Worker("planner", latency.clock)
-        self._ahead_worker = Worker("lookahead", latency.clock)
+        self._worker = Worker("planner", clock_of(latency))
+        self._ahead_worker = Worker("lookahead", clock_of(latency))
         self._lookahead = (
             ahead_planner is not None
             and self._spec.lookahead.enabled
@@ -143,9 +143,11 @@ class PlannerSystem(LeafSystem):
         # whose grasp follows at once, the table the simulated push left without them.
         chained = d.status == "push" and d.grasp is not None and d.after is not None
         if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
-            self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state)
+            self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state=state)
 
-    def _look_ahead(self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, state) -> None:
+    def _look_ahead(
+        self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, *, state
+    ) -> None:
         """Starts the lookahead (push-mog: with the pushes left after this decision), on its
         own thread (a `Worker`: no earlier in simulated time than the one before it ended)."""
         self._raise_lookahead_fault(state)
@@ -182,21 +184,20 @@ class PlannerSystem(LeafSystem):
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
         job = self._worker.submit(
-            self._plan,
+            functools.partial(self._plan, exclude=given_up),
             p.scene,
             rng,
             base.recent,
             memory if self._spec.loop.remember_failures else None,
             base.unrecognised_grasps < self.MAX_UNRECOGNISED_GRASPS,
             self._spec.pushes.max_per_table - base.pushes,
-            given_up,
             t_request=t,
             counter=p.counter,
             info=_Request(base, len(p.scene), p.scene, misses, used),
         )
         state.get_mutable_abstract_state(self._job).set_value(Slot(job))
 
-    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, exclude):
+    def _plan(self, scene, rng, avoid, failures, grasp_unrecognised, pushes_left, *, exclude):
         d = next_pick(
             scene,
             self._planner,

@@ -37,6 +37,7 @@ class ArmView:
         intrinsics,
         table,
         ignore=(),
+        *,
         radius=0.07,
         hang=0.06,
         step=0.02,

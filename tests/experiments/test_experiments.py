@@ -529,7 +529,7 @@ def test_the_picking_figure_draws_the_papers_bars_only_where_it_reports_the_mode
     }
     for modes, bars, labels in ((("mog", "sog"), 4, 2), (("push-mog",), 1, 1)):
         figures.picking_figure({"rows": [row | {"mode": m} for m in modes]}, tmp_path / "p.png", PAPER_TABLE1)
-        ax = saved[-1].axes[0]
-        assert len(ax.patches) == bars and len(ax.get_legend().get_texts()) == labels
+        ax, legend_ax = saved[-1].axes[0], saved[-1].axes[-1]
+        assert len(ax.patches) == bars and len(legend_ax.get_legend().get_texts()) == labels
         centres = sorted(p.get_x() + p.get_width() / 2 for p in ax.patches)
         assert (centres[0] == 0.0) == (len(modes) == 1)

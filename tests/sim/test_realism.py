@@ -146,11 +146,12 @@ def test_the_station_builds_the_drawn_world_and_the_planner_sees_only_perception
     assert 0.002 < np.std(diff) / np.sqrt(2) < 0.0035
     # Structure: the planner's one input is perception's scene; its physics check is the
     # scenario's nominal model, not the station's world.
-    diagram, parts = MakePickDiagram(sc)
-    planner = parts["planner"]
+    parts = MakePickDiagram(sc)
+    diagram = parts.diagram
+    planner = parts.planner
     assert isinstance(planner, PlannerSystem) and planner.num_input_ports() == 1
     ((src, port),) = [v for (dst, _), v in diagram.connection_map().items() if dst is planner]
-    assert src is parts["perception"] and src.get_output_port(port).get_name() == "scene"
+    assert src is parts.perception and src.get_output_port(port).get_name() == "scene"
     check = make_planner(sc).verifier
     assert check.objects is None and check.config == sc.verifier and check.physics == sc.gripper
 

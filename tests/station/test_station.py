@@ -459,7 +459,8 @@ def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
 
-    from mog_drake.station.scoring import BinRetirement, objects_in_bin
+    from mog_drake.station.scoring import objects_in_bin
+    from mog_drake.station.speed import BinRetirement
 
     sc = Scenario(scene=ClutteredScene(seed=3, n_objects=3))
     d, h = MakeStation(sc)
@@ -499,7 +500,7 @@ def test_a_cleared_station_with_the_arm_settling_does_not_fault():
     from pydrake.multibody.math import SpatialVelocity
 
     from mog_drake.station import still_station
-    from mog_drake.station.scoring import BinRetirement
+    from mog_drake.station.speed import BinRetirement
 
     sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3))
     sim, h, pc = still_station(sc)

@@ -10,10 +10,10 @@ import pytest
 from conftest import make_scene
 from pydrake.systems.analysis import Simulator
 
-from mog_drake.config import CPU, WALL, LatencyConfig
+from mog_drake.config import LatencyConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenario import Scenario, SceneFile
-from mog_drake.systems.jobs import Worker
+from mog_drake.systems.jobs import CPU, WALL, Worker, clock_of
 from mog_drake.systems.pick import MakePickDiagram
 
 
@@ -32,14 +32,15 @@ def _diagram(tmp_path, latency=None, objects=None, mode="sog", return_home=False
     sc.controller.return_home = return_home
     for k, v in planner.items():
         setattr(sc.planner, k, v)
-    d, parts = MakePickDiagram(sc, verifier=LiftsAnything())
+    parts = MakePickDiagram(sc, verifier=LiftsAnything())
+    d = parts.diagram
     sim = Simulator(d)
     return sc, d, parts, sim
 
 
 def _close(parts):
-    parts["perception"].shutdown()
-    parts["planner"].shutdown()
+    parts.perception.shutdown()
+    parts.planner.shutdown()
 
 
 def test_a_planner_slowed_by_2_s_does_not_delay_the_controllers_updates(tmp_path, monkeypatch):
@@ -58,16 +59,16 @@ def test_a_planner_slowed_by_2_s_does_not_delay_the_controllers_updates(tmp_path
     monkeypatch.setattr(planner_module, "next_pick", slow)
     sc, d, parts, sim = _diagram(tmp_path)
     ctx = sim.get_mutable_context()
-    c = parts["controller"]
+    c = parts.controller
     cctx = c.GetMyContextFromRoot(ctx)
-    pctx = parts["planner"].GetMyContextFromRoot(ctx)
+    pctx = parts.planner.GetMyContextFromRoot(ctx)
     period = sc.controller.period
     lags, decisions = [], {}
     try:
         while ctx.get_time() < 20.0 and len(c.state(cctx).attempts) < 2:
             sim.AdvanceTo(ctx.get_time() + period)
             lags.append(ctx.get_time() - c.state(cctx).t_last)
-            dec = parts["planner"].GetOutputPort("decision").Eval(pctx)
+            dec = parts.planner.GetOutputPort("decision").Eval(pctx)
             decisions.setdefault(dec.counter, dec)
     finally:
         _close(parts)
@@ -89,7 +90,7 @@ def test_results_become_visible_only_after_their_latency(tmp_path):
     latency = LatencyConfig("fixed", perception_s=0.3, planning_s=2.0)
     sc, d, parts, sim = _diagram(tmp_path, latency)
     ctx = sim.get_mutable_context()
-    c, p, pl = parts["controller"], parts["perception"], parts["planner"]
+    c, p, pl = parts.controller, parts.perception, parts.planner
     seen = {}
     try:
         while ctx.get_time() < 4.0:
@@ -128,7 +129,7 @@ def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
     as it is done; one that computes 0.2 s is not visible 0.1 s of simulated time after its
     request, and is 0.25 s after it (the collecting event waits for it, as in simulation)."""
 
-    assert LatencyConfig("cpu").clock is CPU and LatencyConfig().clock is WALL
+    assert clock_of(LatencyConfig("cpu")) is CPU and clock_of(LatencyConfig()) is WALL
     worker = Worker("test", CPU)
     try:
         sleeper = worker.submit(time.sleep, 0.3, t_request=0.0, counter=1)
@@ -168,7 +169,7 @@ def test_each_attempt_records_whether_the_lookaheads_memory_was_in_time(tmp_path
     ]
     sc, d, parts, sim = _diagram(tmp_path, latency, objects, mode="mog")
     ctx = sim.get_mutable_context()
-    c, pl = parts["controller"], parts["planner"]
+    c, pl = parts.controller, parts.planner
     decisions = {}
     try:
         while ctx.get_time() < 40.0 and len(c.state(c.GetMyContextFromRoot(ctx)).attempts) < 2:
@@ -198,13 +199,13 @@ def test_a_changed_table_forces_a_new_plan(tmp_path):
     latency = LatencyConfig("fixed", perception_s=0.2, planning_s=0.5)
     sc, d, parts, sim = _diagram(tmp_path, latency, objects)
     ctx = sim.get_mutable_context()
-    c = parts["controller"]
+    c = parts.controller
     cctx = c.GetMyContextFromRoot(ctx)
-    handles = parts["handles"]
+    handles = parts.handles
     plant = handles.plant
     pctx = plant.GetMyContextFromRoot(ctx)
     moved, scenes = None, {}
-    p_sys = parts["perception"]
+    p_sys = parts.perception
     try:
         while ctx.get_time() < 30.0 and len(c.state(cctx).attempts) < 2:
             sim.AdvanceTo(ctx.get_time() + sc.controller.period)
@@ -243,7 +244,7 @@ def test_the_arm_goes_from_the_bin_to_the_next_grasp_unless_told_to_return_home(
     latency = LatencyConfig("fixed", perception_s=0.1, planning_s=0.1)
     sc, d, parts, sim = _diagram(tmp_path, latency, return_home=return_home)
     ctx = sim.get_mutable_context()
-    c = parts["controller"]
+    c = parts.controller
     cctx = c.GetMyContextFromRoot(ctx)
     modes, q_second = [], None
     try:
@@ -355,7 +356,7 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     monkeypatch.setattr(planner_module, "next_pick", beside)
     sc, d, parts, sim = _diagram(tmp_path, objects=[("large_hexagon", 0.05, -0.10, 0.3)])
     ctx = sim.get_mutable_context()
-    c = parts["controller"]
+    c = parts.controller
     cctx = c.GetMyContextFromRoot(ctx)
     try:
         while ctx.get_time() < 120.0 and c.state(cctx).mode != "done":
@@ -368,8 +369,8 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     assert excluded[:MAX_MISSES] == [[]] * MAX_MISSES and excluded[-1] == [0]
     # The object was never taken: it is still on the table, near where it was (jaws closing
     # 6 cm beside it nudge it, by 2-4 cm over the three misses).
-    plant = parts["handles"].plant
-    p = plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(ctx), parts["handles"].bodies[0]).translation()
+    plant = parts.handles.plant
+    p = plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(ctx), parts.handles.bodies[0]).translation()
     assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.06 and abs(p[2]) < 0.01
 
 

@@ -53,6 +53,7 @@ def run(
     toppled: int = 0,
     progress: bool = True,
     tables: int = 3,
+    *,
     out=None,
     scenario: str | None = None,
     mode: str | None = None,

@@ -31,7 +31,7 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0, period: float | None = 
 
     from mog_drake.config import LatencyConfig
     from mog_drake.scenario import ClutteredScene, Scenario
-    from mog_drake.station.scoring import BinRetirement
+    from mog_drake.station.speed import BinRetirement
     from mog_drake.systems.pick import SLEEP_PERIOD, MakePickDiagram
 
     period = period or SLEEP_PERIOD
@@ -39,8 +39,9 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0, period: float | None = 
     sc = Scenario(scene=ClutteredScene(seed=seed), latency=LatencyConfig(mode="fixed"))
     timers = _Timers()
     with timers.installed():
-        diagram, parts = MakePickDiagram(sc)
-    h, controller = parts["handles"], parts["controller"]
+        parts = MakePickDiagram(sc)
+        diagram = parts.diagram
+    h, controller = parts.handles, parts.controller
     plant = h.plant
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
@@ -85,8 +86,8 @@ def bench_cell(seed: int = 0, sim_seconds: float = 40.0, period: float | None = 
                 samples[phase] += 1
             k += 1
     finally:
-        parts["perception"].shutdown()
-        parts["planner"].shutdown()
+        parts.perception.shutdown()
+        parts.planner.shutdown()
     T = ctx.get_time()
     python = timers.total
     rows = [

@@ -18,6 +18,7 @@ def bench_perception(
     repeats: int = PERCEPTION_REPEATS,
     scenario=None,
     noise_levels=None,
+    *,
     camera_height: float | None = None,
     calibrate: bool = False,
 ) -> list[dict]:
@@ -142,14 +143,14 @@ def _scores(seen, truth) -> dict:
 def bench_station(seed: int = 0, sim_seconds: float = 1.0) -> list[dict]:
     """CPU seconds per simulated second of the simulated station (arm still at its observe
     pose, jaws open) with a whole isrr33 table in four states: every object on the table,
-    awake; the same asleep (`station.sleep`: each at rest, out of the gripper's reach); every
+    awake; the same asleep (`station.speed`: each at rest, out of the gripper's reach); every
     object piled in the bin; and the pile retired (`BinRetirement`)."""
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
 
     from mog_drake.scenario import ClutteredScene, Scenario
     from mog_drake.station import still_station
-    from mog_drake.station.scoring import BinRetirement
+    from mog_drake.station.speed import BinRetirement
     from mog_drake.systems.pick import SLEEP_PERIOD
 
     sc = Scenario(scene=ClutteredScene(seed=seed))

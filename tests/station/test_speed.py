@@ -1,4 +1,4 @@
-"""Objects at rest out of reach leave the station's physics (`mog_drake.station.sleep`)."""
+"""Objects at rest out of reach leave the station's physics (`mog_drake.station.speed`)."""
 
 import numpy as np
 from pydrake.multibody.math import SpatialVelocity
@@ -88,9 +88,9 @@ def test_a_station_fault_ends_the_run_with_one_line_the_record_and_the_state_sav
 
     from mog_drake.cli import main
     from mog_drake.errors import StationFault
-    from mog_drake.station import scoring
+    from mog_drake.station import speed
 
-    update = scoring.BinRetirement.update
+    update = speed.BinRetirement.update
 
     def fling(self, plant_context):
         update(self, plant_context)
@@ -101,7 +101,7 @@ def test_a_station_fault_ends_the_run_with_one_line_the_record_and_the_state_sav
                 plant_context, self.bodies[1], SpatialVelocity(np.zeros(3), v)
             )
 
-    monkeypatch.setattr(scoring.BinRetirement, "update", fling)
+    monkeypatch.setattr(speed.BinRetirement, "update", fling)
     monkeypatch.chdir(tmp_path)
     sc = Scenario(scene=ClutteredScene(seed=0, n_objects=3), time_limit=20.0)
     sc.latency.mode = "fixed"
