@@ -6,6 +6,9 @@ from pydrake.common.schema import Rotation, Transform
 from pydrake.math import RollPitchYaw
 from pydrake.systems.sensors import CameraConfig
 
+from mog_drake.config import in_range
+from mog_drake.errors import MogError
+
 
 def default_camera() -> CameraConfig:
     """The overhead RGB-D camera, looking straight down at the table from 0.8 m.
@@ -52,3 +55,11 @@ def camera_sees(camera: CameraConfig, p_W) -> bool:
     u = fx * p_C[0] / p_C[2] + cx
     v = fy * p_C[1] / p_C[2] + cy
     return bool(0 <= u < camera.width and 0 <= v < camera.height)
+
+
+def check_camera(c: CameraConfig) -> None:
+    """Refuses, at load, a camera the renderer cannot make (the scenario's ``camera``)."""
+    for key in ("width", "height"):
+        in_range(getattr(c, key), f"camera.{key}", 0, 8192)
+    if not 0 < c.z_near < c.z_far or not 0 < c.clipping_near < c.clipping_far:
+        raise MogError("camera: 0 < z_near < z_far and 0 < clipping_near < clipping_far")

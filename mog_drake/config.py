@@ -5,7 +5,24 @@ types.)"""
 
 from dataclasses import dataclass
 
+from mog_drake.errors import MogError
+
 LATENCY_MODES = ("measured", "cpu", "fixed")
+
+
+def in_range(value, key: str, lo: float, hi: float, lo_open: bool = True) -> None:
+    """Refuses ``value`` outside (lo, hi] ([lo, hi] with ``lo_open=False``), naming ``key``."""
+    ok = (lo < value if lo_open else lo <= value) and value <= hi
+    if not ok:
+        left = "(" if lo_open else "["
+        raise MogError(f"{key} must be in {left}{lo:g}, {hi:g}], got {value!r}")
+
+
+def box_bounds(values, key: str, n: int) -> None:
+    """Refuses a box that is not ``n`` numbers of (min, max) pairs with min < max."""
+    if len(values) != n or any(values[i] >= values[i + 1] for i in range(0, n, 2)):
+        got = list(values) if len(values) <= 2 * n else f"{len(values):,} numbers"
+        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {got}")
 
 
 @dataclass
@@ -23,6 +40,12 @@ class LatencyConfig:
         if self.mode == "fixed":
             return getattr(self, f"{stage}_s")
         return None
+
+    def check(self) -> None:
+        if self.mode not in LATENCY_MODES:
+            raise MogError(f"latency.mode must be one of {', '.join(LATENCY_MODES)}, got {self.mode!r}")
+        for key in ("perception_s", "planning_s"):
+            in_range(getattr(self, key), f"latency.{key}", 0, 600, lo_open=False)
 
 
 @dataclass
@@ -42,6 +65,11 @@ class ControllerConfig:
     # 1.4 s of its 6.7 s cycle saved.
     return_home: bool = False
 
+    def check(self) -> None:
+        in_range(self.period, "controller.period (s)", 0, 1.0)
+        for key in ("close_margin", "open_time", "settle_time"):
+            in_range(getattr(self, key), f"controller.{key} (s)", 0, 60, lo_open=False)
+
 
 @dataclass
 class MotionConfig:
@@ -55,3 +83,6 @@ class MotionConfig:
     # While objects are held (lift, travel to the bin) the arm moves at this fraction of its
     # joint speed and acceleration limits: objects carried by friction stay put.
     carry_scale: float = 0.5
+
+    def check(self) -> None:
+        in_range(self.carry_scale, "motion.carry_scale", 0, 1)

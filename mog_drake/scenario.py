@@ -24,17 +24,17 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.systems.sensors import CameraConfig
 from pydrake.visualization import VisualizationConfig
 
-from mog_drake.camera import default_camera
-from mog_drake.config import LATENCY_MODES, ControllerConfig, LatencyConfig, MotionConfig
+from mog_drake.camera import check_camera, default_camera
+from mog_drake.config import ControllerConfig, LatencyConfig, MotionConfig, box_bounds, in_range
 from mog_drake.errors import MogError
 from mog_drake.files import model_path, read_text
-from mog_drake.hardware.config import HardwareSpec, ReplaySource
+from mog_drake.hardware.config import HardwareSpec
 from mog_drake.perception import PerceptionConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.scenes.library import check_yaml
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 from mog_drake.sim.realism import RealismConfig
-from mog_drake.sim.verifier_config import VerifierConfig, contact_config, picking_check
+from mog_drake.sim.verifier_config import VerifierConfig
 
 SCENARIO_YAML = model_path("scenario.yaml")
 # A scenario sets a few hundred values (models/scenario.yaml, every setting: about 250); many
@@ -55,6 +55,14 @@ class ClutteredScene:
     inventory: str = "isrr33"
     n_objects: int = 0  # 0: the whole inventory
 
+    def check(self) -> None:
+        if not 0 <= self.seed < 2**63:
+            raise MogError(f"scene.seed must be a whole number >= 0, got {self.seed}")
+        if self.n_objects < 0:
+            raise MogError(
+                f"scene.n_objects must be at least 0 (0: the whole inventory), got {self.n_objects}"
+            )
+
 
 @dataclass
 class RowScene:
@@ -63,12 +71,24 @@ class RowScene:
     seed: int = 0
     row_class: int = 3
 
+    def check(self) -> None:
+        from mog_drake.scenes import ROW_CLASSES
+
+        if not 0 <= self.seed < 2**63:
+            raise MogError(f"scene.seed must be a whole number >= 0, got {self.seed}")
+        if self.row_class not in ROW_CLASSES:
+            raise MogError(f"scene.row_class must be one of {sorted(ROW_CLASSES)}, got {self.row_class}")
+
 
 @dataclass
 class SceneFile:
     """A scene YAML file (`mog-drake scene generate` writes them)."""
 
     file: str = ""
+
+    def check(self) -> None:
+        if not self.file.strip():
+            raise MogError("scene.file must name a scene file (!SceneFile {file: my_scene.yaml})")
 
 
 SceneSource = Union[ClutteredScene, RowScene, SceneFile]  # noqa: UP007
@@ -90,6 +110,15 @@ class RobotSpec:
     kp: float = 4000.0
     kd: float = 400.0
 
+    def check(self) -> None:
+        if len(self.base) != 3 or len(self.home) != 6:
+            raise MogError("robot.base must be [x, y, yaw] and robot.home six joint angles")
+        in_range(self.reach, "robot.reach", 0, 2.0)
+        in_range(self.max_joint_speed, "robot.max_joint_speed", 0, 2 * math.pi)
+        in_range(self.max_joint_acceleration, "robot.max_joint_acceleration", 0, 40.0)
+        in_range(self.kp, "robot.kp", 0, 1e7)
+        in_range(self.kd, "robot.kd", 0, 1e6, lo_open=False)
+
 
 @dataclass
 class BinSpec:
@@ -97,6 +126,12 @@ class BinSpec:
     inner: list[float] = field(default_factory=lambda: [0.24, 0.18])
     depth: float = 0.10
     wall: float = 0.01
+
+    def check(self) -> None:
+        if len(self.center) != 2 or len(self.inner) != 2 or min(self.inner) <= 0:
+            raise MogError("bin.center must be [x, y] and bin.inner two positive sizes")
+        in_range(self.depth, "bin.depth", 0, 1.0)
+        in_range(self.wall, "bin.wall", 0, 0.2)
 
     def footprint(self, margin: float = 0.0) -> tuple[float, float, float, float]:
         """(xmin, xmax, ymin, ymax) of the bin's outside walls, grown by ``margin``."""
@@ -113,18 +148,12 @@ class Scenario:
     robot: RobotSpec = field(default_factory=RobotSpec)
     bin: BinSpec = field(default_factory=BinSpec)
     camera: CameraConfig = field(default_factory=default_camera)
-    # The world's contact: a real table has friction (0.3 here: laminate under wood or plastic).
-    # On the paper's near-frictionless table, objects squeezed out of a grasp slide off the
-    # table for good.
-    # Its contact surfaces are triangles: with polygons (one contact point per polygon) a bar
-    # lying on its side rested on too few points and buzzed for good at most spots of the
-    # table, and now and then the solver diverged (docs/physics.md, `bench rest`).
-    contact: ContactConfig = field(default_factory=lambda: contact_config(0.3, "triangle"))
-    # The physics check of the picking planner (`mog_drake.sim.verifier_config.VerifierConfig`).
-    verifier: VerifierConfig = field(default_factory=lambda: picking_check())
-    # Coupled jaws, as on the 2F-85 (see GripperPhysics.coupled), in the station and in the
-    # planner's physics check alike.
-    gripper: GripperPhysics = field(default_factory=lambda: GripperPhysics(coupled=True))
+    # The world's contact (`ContactConfig`: a real table's friction, triangle contact surfaces).
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    # The physics check of the picking planner (`VerifierConfig`).
+    verifier: VerifierConfig = field(default_factory=VerifierConfig)
+    # The jaws, coupled as on the 2F-85, in the station and in the planner's check alike.
+    gripper: GripperPhysics = field(default_factory=GripperPhysics)
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
@@ -319,120 +348,39 @@ def _finite_leaves(obj, path: str = ""):
             yield from _finite_leaves(getattr(obj, f.name), f"{path}.{f.name}" if path else f.name)
 
 
-def _in(sc_value, key: str, lo: float, hi: float, lo_open: bool = True) -> None:
-    ok = (lo < sc_value if lo_open else lo <= sc_value) and sc_value <= hi
-    if not ok:
-        left = "(" if lo_open else "["
-        raise MogError(f"{key} must be in {left}{lo:g}, {hi:g}], got {sc_value!r}")
-
-
-def _box(values, key: str, n: int) -> None:
-    if len(values) != n or any(values[i] >= values[i + 1] for i in range(0, n, 2)):
-        got = list(values) if len(values) <= 2 * n else f"{len(values):,} numbers"
-        raise MogError(f"{key} must be {n} numbers (min, max pairs with min < max), got {got}")
-
-
-def _check_sources(sc: Scenario) -> None:
-    """The scene's and the replay camera's settings, each named."""
-    from mog_drake.scenes import ROW_CLASSES
-
-    s = sc.scene
-    if isinstance(s, (ClutteredScene, RowScene)) and not 0 <= s.seed < 2**63:
-        raise MogError(f"scene.seed must be a whole number >= 0, got {s.seed}")
-    if isinstance(s, ClutteredScene) and s.n_objects < 0:
-        raise MogError(f"scene.n_objects must be at least 0 (0: the whole inventory), got {s.n_objects}")
-    if isinstance(s, RowScene) and s.row_class not in ROW_CLASSES:
-        raise MogError(f"scene.row_class must be one of {sorted(ROW_CLASSES)}, got {s.row_class}")
-    if isinstance(s, SceneFile) and not s.file.strip():
-        raise MogError("scene.file must name a scene file (!SceneFile {file: my_scene.yaml})")
-    cam = sc.hardware.camera
-    if isinstance(cam, ReplaySource):
-        if not cam.dir.strip():
-            raise MogError("hardware.camera.dir must name a folder of recorded frames")
-        _in(cam.frame_period, "hardware.camera.frame_period (s)", 0, 1e9)
-
-
 def check_scenario(sc: Scenario) -> None:
     """Refuses, at load, a setting that would fail only once the robot runs, or crash in the
-    physics: every number finite, and each in the range it means something in (the key named)."""
+    physics: every number finite, and each in the range it means something in (the key named).
+    Each section checks its own keys; here only what spans sections."""
     for key, v in _finite_leaves(sc):
         if not math.isfinite(v):
             raise MogError(f"{key} must be a finite number, got {v!r}")
+    sc.scene.check()
+    sc.robot.check()
+    sc.bin.check()
+    check_camera(sc.camera)
+    sc.contact.check("contact")
+    sc.verifier.check()
+    sc.gripper.check()
     sc.planner.check()
+    sc.perception.check()
+    sc.motion.check()
+    sc.controller.check()
+    sc.latency.check()
     sc.realism.check()
-    if sc.realism.enabled and sc.hardware.enabled:
-        raise MogError("realism applies to the simulated cell; a hardware run meets the real one")
-    _check_sources(sc)
-    _in(sc.time_limit, "time_limit", 0, 1e6)
-    r = sc.robot
-    if len(r.base) != 3 or len(r.home) != 6:
-        raise MogError("robot.base must be [x, y, yaw] and robot.home six joint angles")
-    _in(r.reach, "robot.reach", 0, 2.0)
-    _in(r.max_joint_speed, "robot.max_joint_speed", 0, 2 * math.pi)
-    _in(r.max_joint_acceleration, "robot.max_joint_acceleration", 0, 40.0)
-    _in(r.kp, "robot.kp", 0, 1e7)
-    _in(r.kd, "robot.kd", 0, 1e6, lo_open=False)
-    _box(sc.table, "table", 4)
+    sc.hardware.check()
+    in_range(sc.time_limit, "time_limit", 0, 1e6)
+    box_bounds(sc.table, "table", 4)
     if any(abs(v) > 10 for v in sc.table):
         raise MogError(f"table must lie within 10 m of the origin, got {list(sc.table)}")
-    b = sc.bin
-    if len(b.center) != 2 or len(b.inner) != 2 or min(b.inner) <= 0:
-        raise MogError("bin.center must be [x, y] and bin.inner two positive sizes")
-    _in(b.depth, "bin.depth", 0, 1.0)
-    _in(b.wall, "bin.wall", 0, 0.2)
-    c = sc.camera
-    for key in ("width", "height"):
-        _in(getattr(c, key), f"camera.{key}", 0, 8192)
-    if not 0 < c.z_near < c.z_far or not 0 < c.clipping_near < c.clipping_far:
-        raise MogError("camera: 0 < z_near < z_far and 0 < clipping_near < clipping_far")
-    g = sc.gripper
-    _in(g.force_limit, "gripper.force_limit (N)", 0, 1000)
-    _in(g.close_speed, "gripper.close_speed (m/s)", 0, 1.0)
-    _in(g.finger_height, "gripper.finger_height (m)", 0, 0.2)
-    sc.verifier.check()
-    for key, k in (("contact", sc.contact), ("verifier.contact", sc.verifier.contact)):
-        # A 5 ms step already missed 3 of the 4 successes a 2 ms step saw (docs/physics.md).
-        _in(k.plant.time_step, f"{key}.plant.time_step (s)", 0, 0.01)
-        _in(k.hydroelastic_modulus, f"{key}.hydroelastic_modulus (Pa)", 0, 1e12)
-        for mu in ("mu_object", "mu_finger", "mu_table"):
-            _in(getattr(k, mu), f"{key}.{mu}", 0, 10, lo_open=False)
-        if k.table_collision not in ("box", "halfspace"):
-            raise MogError(f"{key}.table_collision must be box or halfspace, got {k.table_collision!r}")
-        if k.plant.contact_surface_representation not in ("polygon", "triangle"):
-            raise MogError(
-                f"{key}.plant.contact_surface_representation must be polygon or triangle, "
-                f"got {k.plant.contact_surface_representation!r}"
-            )
-    ctl = sc.controller
-    _in(ctl.period, "controller.period (s)", 0, 1.0)
-    for key in ("close_margin", "open_time", "settle_time"):
-        _in(getattr(ctl, key), f"controller.{key} (s)", 0, 60, lo_open=False)
-    _in(sc.motion.carry_scale, "motion.carry_scale", 0, 1)
-    if sc.latency.mode not in LATENCY_MODES:
-        raise MogError(f"latency.mode must be one of {', '.join(LATENCY_MODES)}, got {sc.latency.mode!r}")
-    for key in ("perception_s", "planning_s"):
-        _in(getattr(sc.latency, key), f"latency.{key}", 0, 600, lo_open=False)
-    hw = sc.hardware
-    if not 1 <= hw.gripper_port <= 65535:
-        raise MogError(f"hardware.gripper_port must be a TCP port (1-65535), got {hw.gripper_port}")
-    _in(hw.max_joint_speed, "hardware.max_joint_speed (rad/s)", 0, 2 * math.pi)
-    _in(hw.servo_period, "hardware.servo_period (s)", 0.001, 0.1, lo_open=False)
-    _in(hw.burst_window, "hardware.burst_window (s)", 0, 1.0)
-    _in(hw.stale_after, "hardware.stale_after (s)", 0, 10.0)
-    _in(hw.link_clearance, "hardware.link_clearance (m)", 0, 1.0, lo_open=False)
-    # Each a wait on the gripper: 0 would fault every request, and nothing may wait past 60 s.
-    _in(hw.gripper_timeout, "hardware.gripper_timeout (s)", 0, 20.0)
-    _in(hw.gripper_activation_timeout, "hardware.gripper_activation_timeout (s)", 0, 60.0)
-    _in(hw.gripper_move_timeout, "hardware.gripper_move_timeout (s)", 0, 60.0)
-    _box(hw.workspace, "hardware.workspace", 6)
-    if hw.link_box:
-        _box(hw.link_box, "hardware.link_box", 6)
-    if hw.enabled and sc.robot.max_joint_speed > hw.max_joint_speed:
+    if sc.realism.enabled and sc.hardware.enabled:
+        raise MogError("realism applies to the simulated cell; a hardware run meets the real one")
+    if sc.hardware.enabled and sc.robot.max_joint_speed > sc.hardware.max_joint_speed:
         # The driver refuses any target faster than its limit: such a run would fault at its
         # first motion, with the arm already under way.
         raise MogError(
             f"robot.max_joint_speed {sc.robot.max_joint_speed:g} rad/s plans faster than "
-            f"hardware.max_joint_speed {hw.max_joint_speed:g} rad/s allows: lower the first"
+            f"hardware.max_joint_speed {sc.hardware.max_joint_speed:g} rad/s allows: lower the first"
         )
 
 

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from mog_drake.scenario import ReplaySource, load_scenario
+from mog_drake.hardware.config import ReplaySource
+from mog_drake.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = sorted((ROOT / "models").iterdir())

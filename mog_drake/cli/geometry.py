@@ -247,11 +247,11 @@ def cmd_candidates(args) -> None:
 
 def cmd_plan(args) -> None:
     from mog_drake.planning.planner import GraspConfig, GraspPlanner
-    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.sim.verifier import row_verifier
 
     scene = load_scene(args)
     group, source = scene.chosen_group(args.group)
-    planner = GraspPlanner(DrakeVerifier(), GraspConfig(method=args.method, max_physics=args.max_physics))
+    planner = GraspPlanner(row_verifier(), GraspConfig(method=args.method, max_physics=args.max_physics))
     res = planner.plan(scene, group, rng=np.random.default_rng(args.seed))
     doc = {"scene": args.scene, "group_source": source, **res.to_dict()}
     emit(args, doc, res.text().replace(f"group {list(res.group)}", f"group {list(res.group)} ({source})", 1))

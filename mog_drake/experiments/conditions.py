@@ -45,9 +45,9 @@ _VERIFIER = None
 def _verifier():
     global _VERIFIER
     if _VERIFIER is None:
-        from mog_drake.sim.verifier import DrakeVerifier
+        from mog_drake.sim.verifier import row_verifier
 
-        _VERIFIER = DrakeVerifier()
+        _VERIFIER = row_verifier()
     return _VERIFIER
 
 

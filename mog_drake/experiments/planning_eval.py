@@ -63,10 +63,10 @@ class SceneMemo:
 def planner_worker(task: dict) -> dict:
     from mog_drake.planning.planner import GraspConfig, GraspPlanner
     from mog_drake.scenes import row_scene
-    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.sim.verifier import row_verifier
 
     scene = row_scene(task["class"], np.random.default_rng(task["scene_seed"]))
-    memo = SceneMemo(DrakeVerifier())
+    memo = SceneMemo(row_verifier())
     out = {}
     for m_index, method in enumerate(task["methods"]):
         cfg = GraspConfig(

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
+from mog_drake.config import in_range
 from mog_drake.errors import MogError
 from mog_drake.geometry.polygon import transform
 from mog_drake.perception.fitting import (
@@ -80,6 +81,17 @@ class PerceptionConfig:
     # noise lifts patches of table past min_height. Off, heights are the camera's own.
     fit_table: bool = False
     table_band: float = 0.006  # m
+
+    def check(self) -> None:
+        """Refuses, at load, settings perception cannot work with (the key named)."""
+        in_range(self.min_height, "perception.min_height (m)", 0, 0.1)
+        in_range(self.max_height, "perception.max_height (m)", self.min_height, 1.0)
+        for key in ("top_band", "wall_margin", "split_spread", "table_band"):
+            in_range(getattr(self, key), f"perception.{key} (m)", 0, 0.05)
+        in_range(self.min_fraction, "perception.min_fraction", 0, 1)
+        in_range(self.unknown_area, "perception.unknown_area (m^2)", 0, 0.1)
+        for key, most in (("separation_tries", 16), ("refits", 8)):
+            in_range(getattr(self, key), f"perception.{key}", 0, most, lo_open=False)
 
 
 def within_reach(x: float, y: float, reach) -> bool:

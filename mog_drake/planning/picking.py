@@ -47,7 +47,7 @@ from mog_drake.geometry import ranked_groups
 from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP
-from mog_drake.planning.config import PlannerSpec
+from mog_drake.planning.config import MODES, PlannerSpec
 from mog_drake.planning.decision import (
     MEMORY_SIZE,
     FailedGroup,
@@ -99,8 +99,7 @@ def next_pick(
     ``grasp_unrecognised``, ``adjacent`` (push-mog's groups of objects that meet),
     ``exclude`` (objects given up on: `tally_misses`), and the spec's ``partial_lifts`` and
     ``last_resort``."""
-    spec = spec or PlannerSpec()
-    spec.check()
+    spec = spec or PlannerSpec()  # checked once, where it was loaded (PlannerSpec.check)
     if spec.mode == "push-mog":
         return _push_mog(
             scene,
@@ -121,6 +120,8 @@ def next_pick(
         )
     if mode == "mog":
         groups = _mog_groups(scene, planner, spec, adjacent)
+    elif mode != "sog":
+        raise MogError(f"planner.mode must be one of {', '.join(MODES)}, got {mode!r}")
     else:
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")

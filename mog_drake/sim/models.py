@@ -34,6 +34,8 @@ from pydrake.multibody.tree import (
     SpatialInertia,
 )
 
+from mog_drake.config import in_range
+from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry
 from mog_drake.geometry.polygon import convex_hull_ccw
 
@@ -59,12 +61,17 @@ class ContactConfig:
     every one, while 5 ms, though 2.4x cheaper, missed 3 of the 4 successes and invented one;
     a slower close (50 mm/s) at 5 ms still missed 3 of 4. Only 2 ms or finer tells the truth.
 
-    Friction. Drake combines two geometries' coefficients as 2 m1 m2 / (m1 + m2). The paper
-    models a near-frictionless table (mu = 0.01 in MuJoCo) and derives its conditions for
-    frictionless object-object contact; with mu = 0.01 on every pair nothing lifts, because
-    a lift needs friction at the jaws. So objects and fingers get a realistic 0.5 and the
-    table 0.005, which gives: object-table 0.0099 (the paper's near-frictionless sliding),
-    finger-object 0.5 (a rubber-padded Robotiq jaw), object-object 0.5 (wood / plastic).
+    Friction. Drake combines two geometries' coefficients as 2 m1 m2 / (m1 + m2). Objects and
+    fingers get a realistic 0.5 (finger-object 0.5, a rubber-padded Robotiq jaw; object-object
+    0.5, wood / plastic) and the table 0.3 (laminate under wood or plastic). The paper models a
+    near-frictionless table (mu = 0.01 in MuJoCo) and derives its conditions for frictionless
+    object-object contact; with mu = 0.01 on every pair nothing lifts, because a lift needs
+    friction at the jaws: its row check (models/row_check.yaml) gives the table 0.005,
+    object-table 0.0099. On that table, objects squeezed out of a grasp slide off for good.
+
+    Contact surfaces are triangles: with polygons (one contact point per polygon) a bar lying
+    on its side rested on too few points and buzzed for good at most spots of the table, and
+    now and then the solver diverged (docs/physics.md, `bench rest`).
     """
 
     # Drake's own: time step, contact model and discrete approximation.
@@ -73,6 +80,7 @@ class ContactConfig:
             time_step=0.002,
             discrete_contact_approximation="lagged",
             contact_model="hydroelastic_with_fallback",
+            contact_surface_representation="triangle",
         )
     )
     hydroelastic_modulus: float = 5e6  # Pa, compliant prisms
@@ -80,7 +88,7 @@ class ContactConfig:
     resolution_hint: float = 0.01  # m
     mu_object: float = 0.5
     mu_finger: float = 0.5
-    mu_table: float = 0.005
+    mu_table: float = 0.3
     # The table's collision geometry: "box" or "halfspace". With polygon contact surfaces
     # (``plant.contact_surface_representation``) a thin bar lying on its side (a 7 mm slab)
     # rests on a handful of contact points and buzzes for good, on either table, except where
@@ -89,6 +97,20 @@ class ContactConfig:
     # triangles; the picking check a half-space (docs/physics.md compares the two tables on
     # the planner's checks). Upright objects rest either way.
     table_collision: str = "box"
+
+    def check(self, where: str) -> None:
+        # A 5 ms step already missed 3 of the 4 successes a 2 ms step saw (docs/physics.md).
+        in_range(self.plant.time_step, f"{where}.plant.time_step (s)", 0, 0.01)
+        in_range(self.hydroelastic_modulus, f"{where}.hydroelastic_modulus (Pa)", 0, 1e12)
+        for mu in ("mu_object", "mu_finger", "mu_table"):
+            in_range(getattr(self, mu), f"{where}.{mu}", 0, 10, lo_open=False)
+        if self.table_collision not in ("box", "halfspace"):
+            raise MogError(f"{where}.table_collision must be box or halfspace, got {self.table_collision!r}")
+        if self.plant.contact_surface_representation not in ("polygon", "triangle"):
+            raise MogError(
+                f"{where}.plant.contact_surface_representation must be polygon or triangle, "
+                f"got {self.plant.contact_surface_representation!r}"
+            )
 
 
 @dataclass
@@ -114,9 +136,14 @@ class GripperPhysics:
     # coupler constraint, right = -left). Uncoupled, each jaw is its own force-limited motor:
     # once both push at the limit, nothing centres what they hold, and the held objects and
     # jaws slide together along the closing axis under the arm's accelerations (the station
-    # dropped stacks on the way to the bin like that). Off here, so the paper's experiments keep
-    # the model they were run with; the pick-and-place scenario turns it on.
-    coupled: bool = False
+    # dropped stacks on the way to the bin like that). The paper's row check keeps the
+    # uncoupled jaws its experiments were run with (models/row_check.yaml).
+    coupled: bool = True
+
+    def check(self) -> None:
+        in_range(self.force_limit, "gripper.force_limit (N)", 0, 1000)
+        in_range(self.close_speed, "gripper.close_speed (m/s)", 0, 1.0)
+        in_range(self.finger_height, "gripper.finger_height (m)", 0, 0.2)
 
 
 def _proximity(contact: ContactConfig, mu: float, compliant: bool) -> ProximityProperties:

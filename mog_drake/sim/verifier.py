@@ -411,6 +411,15 @@ class _Watch:
         return bool(np.all(np.linalg.norm(p - s[0][1], axis=1)[up] < cfg.hold_drift))
 
 
+def row_verifier(meshcat=None) -> DrakeVerifier:
+    """The physics check of the paper's row experiments (models/row_check.yaml), with its
+    gripper."""
+    from mog_drake.scenario import load_scenario
+
+    sc = load_scenario("row_check")
+    return DrakeVerifier(sc.verifier, physics=sc.gripper, meshcat=meshcat)
+
+
 def verify_one(scenario, scene, group, grasp, force: float | None = None, meshcat=None) -> GraspResult:
     """One grasp checked in physics with ``scenario``'s verifier and gripper (``force``: the
     grip force limit per jaw instead, N), shown in ``meshcat`` if given."""

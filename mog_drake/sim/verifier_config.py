@@ -8,24 +8,42 @@ from mog_drake.geometry import GripperGeometry
 from mog_drake.sim.models import ContactConfig, GripperPhysics
 
 
+def check_contact() -> ContactConfig:
+    """The check's contact: the world's friction, with polygon contact surfaces (triangles cost
+    1.7x for the same verdicts) on a half-space table (0.88x the box's CPU, as many verdicts
+    equal to the reference's)."""
+    c = ContactConfig(table_collision="halfspace")
+    c.plant.contact_surface_representation = "polygon"
+    return c
+
+
 @dataclass
 class VerifierConfig:
     """The physics check's own settings (the jaws' geometry and dynamics are the station's:
-    `DrakeVerifier`). The defaults are the check of the paper's row experiments; the picking
-    scenario's check is `Scenario.verifier`."""
+    `DrakeVerifier`): the picking planner's check (docs/physics.md has the evidence for each
+    value). The paper's row experiments use their own (models/row_check.yaml).
 
-    contact: ContactConfig = field(default_factory=ContactConfig)
+    Its model is the world's own contact (table friction changes how pushed objects turn and
+    slide; with the paper's near-frictionless table the check promised groups the world did
+    not lift). It lifts 0.15 m and holds up to 2.5 s, as long as the arm takes to lift and
+    carry a grasp to the bin (a thin bar on its side, held end to end, slips out about 2 s
+    after the lift), but ends the hold as soon as no lifted object has moved 0.06 mm in
+    0.1 s: a grip that holds moves with the jaws. It simulates only the objects this grasp's
+    jaws and the group can touch (``bodies: grasp``), and a check that holds two or more of
+    the group runs to the end to say which (for planner.loop.partial_lifts; one lifted object
+    is not worth the hold: a lone object's own check is as cheap)."""
+
+    contact: ContactConfig = field(default_factory=check_contact)
     settle_time: float = 0.05  # s, objects settle on the table before the jaws move
     squeeze_time: float = 0.15  # s, jaws keep pushing after the closing ramp
     lift_height: float = 0.15  # m
     lift_speed: float = 0.30  # m/s (mean)
-    hold_time: float = 0.20  # s, held in the air before the verdict (a slipping 20 g prism
-    # falls 0.2 m in that time, so anything still above the threshold is held)
+    hold_time: float = 2.5  # s, held in the air at most before the verdict
     lifted_fraction: float = 0.5  # an object is lifted if it rose by this fraction of the lift
     # CPU seconds the checking thread may spend on one check before it is abandoned. CPU time,
     # not wall time: a thread starved by a busy machine must not turn waiting into a verdict;
     # the thread's, not the process's: planning runs beside the station's physics.
-    cpu_budget: float = 10.0
+    cpu_budget: float = 30.0
     reach_margin: float = 0.02  # m, extra radius when choosing which objects to simulate
     # Which objects a check simulates besides the group: "group", every object the jaws of
     # any grasp of the group can reach (`objects_in_reach`; one plant serves the group's
@@ -33,7 +51,7 @@ class VerifierConfig:
     # swept jaws or of a group object's bounding disc (`objects_at_grasp`): a plant per set,
     # about 30 ms to build, against 2-3 ms per 2 ms step with a whole neighbourhood of
     # resting objects in contact with the table (1 ms with the group alone).
-    bodies: str = "group"
+    bodies: str = "grasp"
     grasp_margin: float = 0.005  # m
     # Stop a check as soon as its failure is certain: during the lift, once the fingers'
     # bottom is above the top of a group object still resting near the table, that object
@@ -43,7 +61,7 @@ class VerifierConfig:
     # known); or, with report_partial_lifts = k > 0, only once fewer than k group objects may
     # still be lifted, so that a check lifting k or more of the group runs to the end and
     # reports which objects it held (k = 1: wait until every group object is left).
-    report_partial_lifts: int = 0
+    report_partial_lifts: int = 2
     # An extension (0: off, the whole hold is simulated): end the hold early once every
     # lifted object has moved slower than settle_speed for settle_window seconds. A grip
     # that will slip creeps from the start of the hold, and faster and faster; a grip that
@@ -59,7 +77,7 @@ class VerifierConfig:
     # last hold_window (0: off). A grip that will fail lets its object creep, and faster and
     # faster; a held one moves with the jaws (still, in the hold) but for the compliant
     # contact's few tenths of a mm/s, however its velocity chatters from step to step.
-    hold_window: float = 0.0  # s
+    hold_window: float = 0.1  # s
     hold_drift: float = 0.00006  # m
 
     def check(self, where: str = "verifier") -> None:
@@ -81,6 +99,7 @@ class VerifierConfig:
                 raise MogError(f"{where}.{key} must be in [0, 10], got {getattr(self, key)}")
         if not 0 < self.lifted_fraction < 1:
             raise MogError(f"{where}.lifted_fraction must be in (0, 1), got {self.lifted_fraction}")
+        self.contact.check(f"{where}.contact")
 
     @property
     def lifted_height(self) -> float:
@@ -100,35 +119,3 @@ class VerifierConfig:
             "lift1": t_lift1,
             "end": t_lift1 + self.hold_time,
         }
-
-
-def contact_config(mu_table: float, surface: str = "polygon", table: str = "box") -> ContactConfig:
-    """A contact model with the table's friction, contact surfaces and table geometry set."""
-    c = ContactConfig(mu_table=mu_table, table_collision=table)
-    c.plant.contact_surface_representation = surface
-    return c
-
-
-def picking_check() -> VerifierConfig:
-    """The picking planner's physics check (docs/physics.md has the evidence for each value).
-
-    Its model is the world's own contact (table friction changes how pushed objects turn and
-    slide; with the paper's near-frictionless table the check promised groups the world did
-    not lift), with polygon contact surfaces (triangles cost 1.7x for the same verdicts) on a
-    half-space table (0.88x the box's CPU, as many verdicts equal to the reference's). It
-    lifts 0.15 m and holds up to 2.5 s, as long as the arm takes to lift and carry a grasp to
-    the bin (a thin bar on its side, held end to end, slips out about 2 s after the lift), but
-    ends the hold as soon as no lifted object has moved 0.06 mm in 0.1 s: a grip that holds
-    moves with the jaws. It simulates only the objects
-    this grasp's jaws and the group can touch (``bodies: grasp``), and a check that holds two
-    or more of the group runs to the end to say which (for planner.loop.partial_lifts; one lifted
-    object is not worth the hold: a lone object's own check is as cheap)."""
-    return VerifierConfig(
-        report_partial_lifts=2,
-        contact=contact_config(0.3, table="halfspace"),
-        hold_time=2.5,
-        hold_window=0.1,
-        hold_drift=0.00006,
-        bodies="grasp",
-        cpu_budget=30.0,
-    )

@@ -8,10 +8,10 @@ from pydrake.systems.framework import DiagramBuilder
 from mog_drake.camera import camera_intrinsics
 from mog_drake.errors import HardwareFault, MogError
 from mog_drake.hardware.cameras import RealSenseCamera, ReplayCamera
+from mog_drake.hardware.config import ReplaySource
 from mog_drake.hardware.robotiq import RobotiqDriver
 from mog_drake.hardware.safety import CommandLog, FaultLatch, SafetyLimits, SafetyMonitor, robot_health
 from mog_drake.hardware.ur5 import UR5Driver
-from mog_drake.scenario import ReplaySource
 
 
 class HardwareHandles:

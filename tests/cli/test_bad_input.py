@@ -101,10 +101,10 @@ def test_faulted_physics_results_are_not_complete():
     import numpy as np
 
     from mog_drake.scenes import row_scene
-    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.sim.verifier import row_verifier
 
     scene = row_scene(2, np.random.default_rng(0))
-    r = DrakeVerifier().check(scene, scene.group, [float("nan"), 0, 0])
+    r = row_verifier().check(scene, scene.group, [float("nan"), 0, 0])
     assert r.error and not r.success and r.complete is False
 
 

@@ -18,10 +18,11 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from mog_drake.errors import HardwareFault, MogError
 from mog_drake.hardware.cameras import RealSenseCamera, ReplayCamera
+from mog_drake.hardware.config import HardwareSpec, ReplaySource
 from mog_drake.hardware.robotiq import RobotiqClient, RobotiqDriver
 from mog_drake.hardware.safety import CommandLog, FaultLatch, MotionBudget, SafetyLimits, SafetyMonitor
 from mog_drake.hardware.ur5 import UR5Driver
-from mog_drake.scenario import HardwareSpec, ReplaySource, Scenario
+from mog_drake.scenario import Scenario
 from mog_drake.station import PORTS_IN, PORTS_OUT, MakeStation, rendered_intrinsics
 
 LIMITS = SafetyLimits()

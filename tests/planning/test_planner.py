@@ -98,14 +98,14 @@ def test_unknown_method_refused():
 
 
 def test_gp_grasp_is_confirmed_by_physics():
-    from mog_drake.sim.verifier import DrakeVerifier
+    from mog_drake.sim.verifier import row_verifier
 
     scene = make_scene(
         [("thick_bar", -0.012, 0.0, math.pi / 2), ("small_yellow_cube", 0.010, 0.002, 0.1)], group=(0, 1)
     )
-    res = GraspPlanner(DrakeVerifier()).plan(scene, (0, 1))
+    res = GraspPlanner(row_verifier()).plan(scene, (0, 1))
     assert res.found and res.tested >= 1
-    again = DrakeVerifier().check(scene, (0, 1), res.grasp)
+    again = row_verifier().check(scene, (0, 1), res.grasp)
     assert again.success and again.lifted == [0, 1]
 
 

@@ -1,26 +1,46 @@
 """Physics checks on small seeded scenes (each check simulates ~1.2 s in ~0.1-0.3 s)."""
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import make_scene
 
+from mog_drake.errors import MogError
 from mog_drake.geometry import evaluate_grasps, objects_in_reach
 from mog_drake.planning.protocol import Verifier
-from mog_drake.sim.models import ContactConfig, with_time_step
-from mog_drake.sim.verifier import DrakeVerifier
-from mog_drake.sim.verifier_config import VerifierConfig
+from mog_drake.scenario import load_scenario
+from mog_drake.sim.models import with_time_step
+from mog_drake.sim.verifier import DrakeVerifier, row_verifier
+
+# Most checks here are the paper's row check (models/row_check.yaml), changed as each test says.
+ROW = load_scenario("row_check")
+
+
+def row_config(**changes):
+    """The row check's settings, ``changes`` made."""
+    return replace(ROW.verifier, **changes)
+
+
+def row_contact(**changes):
+    """The row check's contact (the paper's near-frictionless table), ``changes`` made."""
+    return replace(ROW.verifier.contact, **changes)
+
+
+def row_check(config=None):
+    """A verifier of the row check (``config``: other settings), with its gripper."""
+    return DrakeVerifier(config or ROW.verifier, physics=ROW.gripper)
 
 
 @pytest.fixture(scope="module")
 def verifier():
-    return DrakeVerifier()
+    return row_verifier()
 
 
 def test_is_a_verifier():
-    assert isinstance(DrakeVerifier(), Verifier)
+    assert isinstance(row_verifier(), Verifier)
 
 
 def test_rectangle_across_its_short_side_is_lifted(verifier):
@@ -63,8 +83,8 @@ def test_object_outside_s_is_not_lifted(verifier):
 def test_identical_inputs_identical_outcomes():
     scene = make_scene([("thick_bar", -0.012, 0.0, 1.5), ("red_triangle", 0.018, 0.004, 0.3)], group=(0, 1))
     grasp = [0.001, 0.0, 0.05]
-    a = DrakeVerifier().check(scene, (0, 1), grasp)
-    v = DrakeVerifier()
+    a = row_verifier().check(scene, (0, 1), grasp)
+    v = row_verifier()
     b = v.check(scene, (0, 1), grasp)
     c = v.check(scene, (0, 1), grasp)  # from the cached plant
     assert b.built and not c.built
@@ -79,17 +99,21 @@ def _outcome(r) -> tuple:
 @pytest.mark.parametrize(
     "config,msg",
     [
-        # An absurd step: the bar falls through the table. (With early exit the check ends
-        # first, at the lift, the jaws having closed on nothing: no success either way.)
-        (VerifierConfig(contact=with_time_step(ContactConfig(), 0.1), early_exit=False), "left the table"),
-        (VerifierConfig(contact=ContactConfig(hydroelastic_modulus=1e3)), "left the table"),
-        (VerifierConfig(cpu_budget=1e-4), "CPU budget"),
+        (row_config(contact=row_contact(hydroelastic_modulus=1e3)), "left the table"),
+        (row_config(cpu_budget=1e-4), "CPU budget"),
     ],
 )
 def test_broken_settings_report_an_error_not_a_success(config, msg):
     scene = make_scene([("thin_bar", 0.0, 0.0, math.pi / 2)], group=(0,))
-    r = DrakeVerifier(config).check(scene, (0,), [0.0, 0.0, 0.0])
+    r = row_check(config).check(scene, (0,), [0.0, 0.0, 0.0])
     assert not r.success and msg in r.error
+
+
+def test_a_step_too_coarse_to_tell_the_truth_is_refused_when_the_check_is_built():
+    """A 5 ms step already misses successes (docs/physics.md); at 0.1 s a bar falls through
+    the table. Refused with the key named, before any check runs."""
+    with pytest.raises(MogError, match=r"verifier\.contact\.plant\.time_step"):
+        row_check(row_config(contact=with_time_step(row_contact(), 0.1)))
 
 
 def test_bad_grasp_is_an_error_result(verifier):
@@ -137,8 +161,6 @@ def test_a_grasp_simulates_what_its_jaws_and_group_can_touch():
 def test_checks_of_one_grasp_agree_whichever_bodies_are_simulated():
     """The same verdicts, lifted objects included, simulating the group's whole reach and only
     what each grasp can touch; a bad setting is refused."""
-    from mog_drake.errors import MogError
-
     scene = make_scene(
         [
             ("thick_bar", -0.012, 0.0, math.pi / 2),
@@ -148,8 +170,8 @@ def test_checks_of_one_grasp_agree_whichever_bodies_are_simulated():
         ],
         group=(0, 1),
     )
-    whole = DrakeVerifier(VerifierConfig(bodies="group"))
-    mine = DrakeVerifier(VerifierConfig(bodies="grasp"))
+    whole = row_check(row_config(bodies="group"))
+    mine = row_check(row_config(bodies="grasp"))
     for grasp in ([0.0, 0.0, 0.0], [-0.001, 0.001, 0.2], [0.0, 0.0, math.pi / 2]):
         a, b = whole.check(scene, (0, 1), grasp), mine.check(scene, (0, 1), grasp)
         assert a.success == b.success
@@ -158,7 +180,7 @@ def test_checks_of_one_grasp_agree_whichever_bodies_are_simulated():
         assert len(mine._sim.bodies) <= len(whole._sim.bodies)
     assert len(whole._sim.bodies) == 4 and len(mine._sim.bodies) < 4
     with pytest.raises(MogError, match="bodies"):
-        DrakeVerifier(VerifierConfig(bodies="all"))
+        row_check(row_config(bodies="all"))
 
 
 def test_check_simulate_cli(tmp_path, capsys, caplog):
@@ -194,11 +216,11 @@ def test_early_exit_is_marked_and_can_wait_for_a_partial_lift():
     scene = make_scene(
         [("thin_bar", 0.0, 0.0, math.pi / 2), ("small_yellow_cube", 0.0, 0.06, 0.0)], group=(0, 1)
     )
-    quick = DrakeVerifier().check(scene, (0, 1), [0.0, 0.0, 0.0])
+    quick = row_verifier().check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not quick.success and not quick.complete and quick.sim_time < 1.0
-    full = DrakeVerifier(VerifierConfig(report_partial_lifts=1)).check(scene, (0, 1), [0.0, 0.0, 0.0])
+    full = row_check(row_config(report_partial_lifts=1)).check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not full.success and full.complete and full.lifted == [0] and full.sim_time > 1.1
-    two = DrakeVerifier(VerifierConfig(report_partial_lifts=2)).check(scene, (0, 1), [0.0, 0.0, 0.0])
+    two = row_check(row_config(report_partial_lifts=2)).check(scene, (0, 1), [0.0, 0.0, 0.0])
     assert not two.success and not two.complete and two.sim_time == pytest.approx(quick.sim_time)
 
 
@@ -208,10 +230,10 @@ def test_a_long_hold_drops_a_bar_on_its_side_held_end_to_end():
     long as the carry to the bin does not. Held across, it stays."""
     yaw = 0.5
     scene = make_scene([("thin_bar:on_side", 0.0, 0.0, yaw)], group=[0])
-    contact = ContactConfig(mu_table=0.3)  # the picking world's table
+    contact = row_contact(mu_table=0.3)  # the picking world's table
     out = {}
     for hold in (0.2, 2.5):
-        v = DrakeVerifier(VerifierConfig(contact=contact, hold_time=hold))
+        v = row_check(row_config(contact=contact, hold_time=hold))
         for name, axis in (("end", yaw), ("across", yaw + math.pi / 2)):
             out[name, hold] = v.check(scene, [0], (0.0, 0.0, axis))
     assert out["end", 0.2].success and out["end", 0.2].final_opening > 0.044  # held by its ends
@@ -226,8 +248,8 @@ def test_a_settled_hold_ends_early_with_the_full_holds_verdict():
     still drops; held across it settles, and the check ends 0.5 s into the hold, not 2.5 s."""
     yaw = 0.5
     scene = make_scene([("thin_bar:on_side", 0.0, 0.0, yaw)], group=[0])
-    cfg = VerifierConfig(contact=ContactConfig(mu_table=0.3), hold_time=2.5, settle_window=0.5)
-    v = DrakeVerifier(cfg)
+    cfg = row_config(contact=row_contact(mu_table=0.3), hold_time=2.5, settle_window=0.5)
+    v = row_check(cfg)
     end = v.check(scene, [0], (0.0, 0.0, yaw))
     across = v.check(scene, [0], (0.0, 0.0, yaw + math.pi / 2))
     assert not end.success and not end.error  # it slipped during the hold

@@ -41,7 +41,8 @@ def perception_summary(rows: list[dict]) -> str:
             f"worst position {max(r['pos_max_mm'] for r in rs):.2f} mm (each fit apart from the shift all "
             f"share: worst {max(r['fit_max_mm'] for r in rs):.2f} mm), worst yaw "
             f"{max(r['yaw_max_deg'] for r in rs):.2f} deg; shared shift {statistics.median(r['shift_mm'] for r in rs):.2f} mm "
-            f"(median table); per image median {statistics.median(t):.3f} s, worst {max(t):.3f} s"
+            f"(median table); per image median {statistics.median(t):.3f} s, worst {max(t):.3f} s "
+            f"(CPU median {statistics.median(r['cpu_s'] for r in rs):.3f} s)"
         )
     return "\n".join(lines)
 

@@ -21,7 +21,7 @@ SIM_S = 0.25  # s of simulated time the station is stepped with every object awa
 
 def large_scene(n: int, seed: int = 0):
     """``n`` objects of the isrr33 inventory (repeated) dropped uniformly over the perceived
-    table without overlap (2 mm apart at least), seeded."""
+    table, clear of the bin, without overlap (2 mm apart at least), seeded."""
     import numpy as np
     import shapely
 
@@ -34,8 +34,13 @@ def large_scene(n: int, seed: int = 0):
     names = [k for k, v in library.inventories["isrr33"].items() for _ in range(v * math.ceil(n / 33))]
     rng = np.random.default_rng(seed)
     names = [names[i] for i in rng.permutation(len(names))][:n]
-    x0, x1, y0, y1 = Scenario().table
+    sc = Scenario()
+    x0, x1, y0, y1 = sc.table
     margin = 0.01
+    # The table but the bin's footprint and the margin around it (as the scene generators).
+    inside = shapely.box(x0 + margin, y0 + margin, x1 - margin, y1 - margin).difference(
+        shapely.union_all([shapely.box(xa, ya, xb, yb) for xa, xb, ya, yb in sc.keep_out()])
+    )
     tree_polys: list = []
     objects = []
     for name in names:
@@ -44,6 +49,8 @@ def large_scene(n: int, seed: int = 0):
             x, y = rng.uniform(x0 + margin, x1 - margin), rng.uniform(y0 + margin, y1 - margin)
             th = rng.uniform(-math.pi, math.pi)
             poly = shapely.Polygon(transform(shape.vertices, x, y, th))
+            if not inside.contains(poly):
+                continue
             near = (
                 shapely.STRtree(tree_polys).query(poly, predicate="dwithin", distance=0.002)
                 if tree_polys

@@ -23,20 +23,21 @@ def bench_perception(
     calibrate: bool = False,
 ) -> list[dict]:
     """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
-    objects found, missed and extra, unrecognised blobs, median and worst position (mm) and yaw
-    error (deg, modulo the shape's symmetry), and wall time per image: ``time_s`` the median of
-    ``repeats`` perceptions of the image (the steady state of a camera feeding frames; one run
-    alone varies by tens of percent on a shared machine), ``first_s`` the first of them (cold
-    caches). ``toppled`` bars per table are laid on their side before rendering (the pose a
-    knocked-over bar takes). ``scenario``: a scenario file whose camera, perception and world
-    (realism) are used, e.g. models/realistic.yaml; ``shift_mm`` is then the error every object
-    shares (the median offset: the camera's calibration), ``fit_mm`` the median of the rest and
-    ``fit_max_mm`` the worst. ``noise_levels``: depth noise levels (times the D435's RMS) to run
-    each table at, in place of the scenario's (one row per level and table; the table is
-    rendered once and each level's depth made from it as the station makes it:
-    `realism.depth_artefacts`). ``camera_height`` (m): the camera's height above the table, in
-    place of the scenario's. ``calibrate``: perception takes the camera's pose that a rendered
-    board gives in each table's world (`hardware.calibration`), not the scenario's."""
+        objects found, missed and extra, unrecognised blobs, median and worst position (mm) and yaw
+        error (deg, modulo the shape's symmetry), and wall time per image: ``time_s`` the median of
+        ``repeats`` perceptions of the image (the steady state of a camera feeding frames; one run
+        alone varies by tens of percent on a shared machine), ``first_s`` the first of them (cold
+        caches), ``cpu_s`` the median CPU time (the process's: on a busy machine, what a quiet one
+    would take). ``toppled`` bars per table are laid on their side before rendering (the pose a
+        knocked-over bar takes). ``scenario``: a scenario file whose camera, perception and world
+        (realism) are used, e.g. models/realistic.yaml; ``shift_mm`` is then the error every object
+        shares (the median offset: the camera's calibration), ``fit_mm`` the median of the rest and
+        ``fit_max_mm`` the worst. ``noise_levels``: depth noise levels (times the D435's RMS) to run
+        each table at, in place of the scenario's (one row per level and table; the table is
+        rendered once and each level's depth made from it as the station makes it:
+        `realism.depth_artefacts`). ``camera_height`` (m): the camera's height above the table, in
+        place of the scenario's. ``calibrate``: perception takes the camera's pose that a rendered
+        board gives in each table's world (`hardware.calibration`), not the scenario's."""
     from dataclasses import replace
 
     from mog_drake.camera import camera_pose
@@ -73,14 +74,21 @@ def bench_perception(
                 flying=world.flying_pixels,
                 fx=K[0],
             )
-            times = []
+            times, cpus = [], []
             for _ in range(max(repeats, 1)):
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 seen = perceiver.perceive(rgb, depth, X_WC, K)
                 times.append(time.perf_counter() - t)
+                cpus.append(time.process_time() - c)
             row = {"noise": level, "table_seed": k, "objects": len(truth.scene), "toppled": truth.laid}
             rows.append(
-                {**row, **_scores(seen, truth.scene), "time_s": float(np.median(times)), "first_s": times[0]}
+                {
+                    **row,
+                    **_scores(seen, truth.scene),
+                    "time_s": float(np.median(times)),
+                    "cpu_s": float(np.median(cpus)),
+                    "first_s": times[0],
+                }
             )
     return rows
 
