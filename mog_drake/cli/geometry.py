@@ -101,7 +101,8 @@ def add_parsers(sub) -> None:
     sp.add_argument("--force", type=float, help="grip force per jaw in N (default: the scenario's, 40)")
     sp.add_argument(
         "--scenario",
-        help="scenario YAML, or a shipped one's name, whose physics check and gripper the simulation uses (default: the built-in one)",
+        help="scenario YAML, or a shipped one's name, whose physics check and gripper the simulation uses "
+        "(default: the built-in one, the picking planner's check; row_check: the paper's row check, as plan uses)",
     )
     sp.set_defaults(func=cmd_check)
 
@@ -114,7 +115,8 @@ def add_parsers(sub) -> None:
     sp.set_defaults(func=cmd_candidates)
 
     sp = sub.add_parser(
-        "plan", help="plan a grasp for a group: GraspPlanner (the paper's Alg. 2) or a baseline"
+        "plan",
+        help="plan a grasp for a group: GraspPlanner (the paper's Alg. 2) or a baseline, checked in the paper's row check (models/row_check.yaml)",
     )
     add_common(sp)
     sp.add_argument("--group", type=int, nargs="+", metavar="INDEX", help=GROUP_HELP)
