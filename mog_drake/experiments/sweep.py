@@ -226,6 +226,12 @@ def run_sweep(
                     bar.step()
         finally:
             bar.close()
+            if ray_address and todo:
+                import ray
+
+                # Let go of the cluster: a driver still connected when the cluster stops is
+                # ended by Ray (exit 1), whatever this process is doing by then.
+                ray.shutdown()
     if failed:
         first = failed[0]
         raise MogError(
