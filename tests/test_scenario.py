@@ -1,11 +1,12 @@
-"""The scenario's checks: each section owns its check(), and loading calls each once."""
+"""The scenario: its file, its defaults, and its checks (each section owns its check(), and
+loading calls each once)."""
 
 import dataclasses
 
 import pytest
 
 from mog_drake.errors import MogError
-from mog_drake.scenario import Scenario, check_scenario, scenario_from_text
+from mog_drake.scenario import RowScene, Scenario, check_scenario, load_scenario, scenario_from_text
 
 # Drake's own config structs: their keys are checked where they are read (the finite-number
 # pass covers every one of their numbers).
@@ -54,3 +55,96 @@ def test_every_section_owns_a_check_that_loading_calls_once(monkeypatch):
 def test_a_bad_key_is_refused_by_its_sections_check_naming_it(text, key):
     with pytest.raises(MogError, match=key.replace(".", r"\.")):
         scenario_from_text(text)
+
+
+def test_scenario_yaml_overrides_defaults(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("scene: !RowScene {row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
+    sc = load_scenario(str(f))
+    assert (
+        isinstance(sc.scene, RowScene)
+        and sc.scene.row_class == 4
+        and sc.planner.mode == "sog"
+        and sc.time_limit == 30
+    )
+    assert sc.camera.width == 640  # untouched defaults remain
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scene: {colour: red}\n")
+    from mog_drake.errors import MogError
+
+    with pytest.raises(MogError, match="bad.yaml"):
+        load_scenario(str(bad))
+
+
+def test_committed_scenario_file_matches_the_defaults():
+    from mog_drake.scenario import SCENARIO_YAML, scenario_yaml
+
+    text = SCENARIO_YAML.read_text()
+    body = "\n".join(line for line in text.splitlines() if not line.startswith("#"))
+    assert body.strip() == scenario_yaml().strip()
+    assert scenario_yaml(load_scenario(str(SCENARIO_YAML))) == scenario_yaml(Scenario())
+
+
+def test_every_setting_is_reachable_from_yaml():
+    """Every field of every nested config, the project's dataclasses and Drake's structs alike,
+    is a key of models/scenario.yaml, so it can be set from a scenario file."""
+    import dataclasses
+
+    import yaml
+
+    from mog_drake.scenario import SCENARIO_YAML
+
+    class Untagged(yaml.SafeLoader):  # a variant's tag (!FovDegrees, !Rpy, ...) names its type only
+        pass
+
+    Untagged.add_multi_constructor("!", lambda loader, tag, node: loader.construct_mapping(node, deep=True))
+    doc = yaml.load(SCENARIO_YAML.read_text(), Loader=Untagged)  # noqa: S506
+
+    def fields(obj):
+        if dataclasses.is_dataclass(obj):
+            return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+        if type(obj).__name__.endswith("Config") and hasattr(type(obj), "__fields__"):  # Drake's
+            return {f.name: getattr(obj, f.name) for f in type(obj).__fields__}
+        return None
+
+    missing = []
+
+    def walk(obj, node, path):
+        for name, value in (fields(obj) or {}).items():
+            if value is None:
+                continue  # an optional Drake field left unset: yaml_dump_typed omits it
+            if not isinstance(node, dict) or name not in node:
+                missing.append(f"{path}{name}")
+            elif fields(value):
+                walk(value, node[name], f"{path}{name}.")
+
+    walk(Scenario(), doc, "")
+    assert not missing
+    for name in ("motion", "controller", "perception", "simulator", "visualization", "camera"):
+        assert name in doc
+
+
+def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
+    from mog_drake.errors import MogError
+
+    f = tmp_path / "bad.yaml"
+    f.write_text("planner:\n  grasp:\n    method: fastest\n")
+    with pytest.raises(MogError, match="planner.grasp: unknown planner method 'fastest'"):
+        load_scenario(str(f))
+    f.write_text("robot:\n  reach: 0.0\n")
+    with pytest.raises(MogError, match=r"robot.reach must be in \(0, 2\], got 0.0"):
+        load_scenario(str(f))
+    f.write_text("verifier:\n  hold_time: 0\n")
+    with pytest.raises(MogError, match="verifier.hold_time must be in"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  loop:\n    group_radius: 35\n")  # millimetres by mistake
+    with pytest.raises(MogError, match="group_radius must be in .* got 35"):
+        load_scenario(str(f))
+    f.write_text("verifier:\n  hold_window: 3.0\n")
+    with pytest.raises(MogError, match=r"verifier.hold_window must be in \[0, hold_time = 2.5\] s, got 3.0"):
+        load_scenario(str(f))
+    f.write_text("planner:\n  loop:\n    grouping: nearest\n")
+    with pytest.raises(
+        MogError, match="planner.loop.grouping must be one of radius, conditions, got 'nearest'"
+    ):
+        load_scenario(str(f))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from mog_drake.camera import camera_intrinsics, camera_pose, camera_sees
-from mog_drake.scenario import ClutteredScene, RowScene, Scenario, SceneFile, load_scenario
+from mog_drake.scenario import ClutteredScene, Scenario, SceneFile
 from mog_drake.station import (
     PORTS_IN,
     PORTS_OUT,
@@ -385,25 +385,6 @@ def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
         m.bin_ik(p, 0.4, (np.array(sc.robot.home),))
 
 
-def test_scenario_yaml_overrides_defaults(tmp_path):
-    f = tmp_path / "s.yaml"
-    f.write_text("scene: !RowScene {row_class: 4, seed: 3}\nplanner: {mode: sog}\ntime_limit: 30.0\n")
-    sc = load_scenario(str(f))
-    assert (
-        isinstance(sc.scene, RowScene)
-        and sc.scene.row_class == 4
-        and sc.planner.mode == "sog"
-        and sc.time_limit == 30
-    )
-    assert sc.camera.width == 640  # untouched defaults remain
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("scene: {colour: red}\n")
-    from mog_drake.errors import MogError
-
-    with pytest.raises(MogError, match="bad.yaml"):
-        load_scenario(str(bad))
-
-
 def test_end_to_end_pick_clears_a_small_table():
     from mog_drake.systems.pick import run_pick
 
@@ -527,54 +508,6 @@ def test_a_cleared_station_with_the_arm_settling_does_not_fault():
         park()
     assert ctx.get_time() == pytest.approx(1.0)
     assert np.abs(plant.GetVelocities(pc, h.robot)[:6]).max() < 1e-6
-
-
-def test_committed_scenario_file_matches_the_defaults():
-    from mog_drake.scenario import SCENARIO_YAML, scenario_yaml
-
-    text = SCENARIO_YAML.read_text()
-    body = "\n".join(line for line in text.splitlines() if not line.startswith("#"))
-    assert body.strip() == scenario_yaml().strip()
-    assert scenario_yaml(load_scenario(str(SCENARIO_YAML))) == scenario_yaml(Scenario())
-
-
-def test_every_setting_is_reachable_from_yaml():
-    """Every field of every nested config, the project's dataclasses and Drake's structs alike,
-    is a key of models/scenario.yaml, so it can be set from a scenario file."""
-    import dataclasses
-
-    import yaml
-
-    from mog_drake.scenario import SCENARIO_YAML
-
-    class Untagged(yaml.SafeLoader):  # a variant's tag (!FovDegrees, !Rpy, ...) names its type only
-        pass
-
-    Untagged.add_multi_constructor("!", lambda loader, tag, node: loader.construct_mapping(node, deep=True))
-    doc = yaml.load(SCENARIO_YAML.read_text(), Loader=Untagged)  # noqa: S506
-
-    def fields(obj):
-        if dataclasses.is_dataclass(obj):
-            return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
-        if type(obj).__name__.endswith("Config") and hasattr(type(obj), "__fields__"):  # Drake's
-            return {f.name: getattr(obj, f.name) for f in type(obj).__fields__}
-        return None
-
-    missing = []
-
-    def walk(obj, node, path):
-        for name, value in (fields(obj) or {}).items():
-            if value is None:
-                continue  # an optional Drake field left unset: yaml_dump_typed omits it
-            if not isinstance(node, dict) or name not in node:
-                missing.append(f"{path}{name}")
-            elif fields(value):
-                walk(value, node[name], f"{path}{name}.")
-
-    walk(Scenario(), doc, "")
-    assert not missing
-    for name in ("motion", "controller", "perception", "simulator", "visualization", "camera"):
-        assert name in doc
 
 
 def test_tiny_picking_evaluation(tmp_path):
@@ -797,32 +730,6 @@ def test_perception_sees_beside_the_bin_and_leaves_out_what_the_arm_cannot_reach
     assert seen.meta["beyond_reach"] == 1 and seen.meta["unrecognised_blobs"] == 0
     errs = [e["position"] for e in pose_errors(seen, truth) if e["position"] is not None]
     assert len(errs) == 3 and max(errs) <= 0.003
-
-
-def test_scenario_with_an_unknown_planner_method_is_refused(tmp_path):
-    from mog_drake.errors import MogError
-
-    f = tmp_path / "bad.yaml"
-    f.write_text("planner:\n  grasp:\n    method: fastest\n")
-    with pytest.raises(MogError, match="planner.grasp: unknown planner method 'fastest'"):
-        load_scenario(str(f))
-    f.write_text("robot:\n  reach: 0.0\n")
-    with pytest.raises(MogError, match=r"robot.reach must be in \(0, 2\], got 0.0"):
-        load_scenario(str(f))
-    f.write_text("verifier:\n  hold_time: 0\n")
-    with pytest.raises(MogError, match="verifier.hold_time must be in"):
-        load_scenario(str(f))
-    f.write_text("planner:\n  loop:\n    group_radius: 35\n")  # millimetres by mistake
-    with pytest.raises(MogError, match="group_radius must be in .* got 35"):
-        load_scenario(str(f))
-    f.write_text("verifier:\n  hold_window: 3.0\n")
-    with pytest.raises(MogError, match=r"verifier.hold_window must be in \[0, hold_time = 2.5\] s, got 3.0"):
-        load_scenario(str(f))
-    f.write_text("planner:\n  loop:\n    grouping: nearest\n")
-    with pytest.raises(
-        MogError, match="planner.loop.grouping must be one of radius, conditions, got 'nearest'"
-    ):
-        load_scenario(str(f))
 
 
 def test_carrying_is_gentler_than_moving_empty():
