@@ -144,6 +144,7 @@ def study_figure(rows: list[dict], path: str | Path, title: str = "") -> Path:
     axes[1].set_ylabel("objects per successful grasp")
     for ax in axes:
         ax.set_xlabel("uncertainty level (x the level-1 magnitudes)")
+        ax.set_xticks(sorted({r["level"] for r in rows}))  # the levels run, not fractions of one
         ax.grid(alpha=0.3)
     axes[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))  # clear of the data
     if title:
