@@ -22,11 +22,11 @@ reaches planning except through the images.
 No Drake import: the station applies the draws.
 """
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from mog_drake.config import in_range
 from mog_drake.errors import MogError
 
 # The D435's depth RMS error, from Intel's D400 tuning guide (RMS = z^2 * subpixel / (f * B)):
@@ -165,9 +165,7 @@ class RealismConfig:
 
     def check(self) -> None:
         for key, most in REALISM_LIMITS.items():
-            v = getattr(self, key)
-            if not (math.isfinite(v) and 0 <= v <= most):
-                raise MogError(f"realism.{key} must be in [0, {most:g}], got {v}")
+            in_range(getattr(self, key), f"realism.{key}", 0, most, lo_open=False)
         if self.seed < 0:
             raise MogError(f"realism.seed must be >= 0, got {self.seed}")
 

@@ -3,6 +3,7 @@ the table it stands on, the close, lift and hold, and when a hold ends."""
 
 from dataclasses import dataclass, field
 
+from mog_drake.config import in_range
 from mog_drake.errors import MogError
 from mog_drake.geometry import GripperGeometry
 from mog_drake.sim.models import ContactConfig, GripperPhysics
@@ -92,11 +93,9 @@ class VerifierConfig:
         if self.bodies not in ("group", "grasp"):
             raise MogError(f"{where}.bodies must be one of group, grasp, got {self.bodies!r}")
         for key, hi in (("cpu_budget", 600), ("hold_drift", 0.05), ("lift_height", 0.5), ("lift_speed", 2.0)):
-            if not 0 < getattr(self, key) <= hi:
-                raise MogError(f"{where}.{key} must be in (0, {hi:g}], got {getattr(self, key)}")
+            in_range(getattr(self, key), f"{where}.{key}", 0, hi)
         for key in ("settle_time", "squeeze_time", "grasp_margin", "reach_margin"):
-            if not 0 <= getattr(self, key) <= 10:
-                raise MogError(f"{where}.{key} must be in [0, 10], got {getattr(self, key)}")
+            in_range(getattr(self, key), f"{where}.{key}", 0, 10, lo_open=False)
         if not 0 < self.lifted_fraction < 1:
             raise MogError(f"{where}.lifted_fraction must be in (0, 1), got {self.lifted_fraction}")
         self.contact.check(f"{where}.contact")

@@ -35,7 +35,7 @@ def large_scene(n: int, seed: int = 0):
     rng = np.random.default_rng(seed)
     names = [names[i] for i in rng.permutation(len(names))][:n]
     # The largest first: on a crowded table the small ones still fit between them.
-    names.sort(key=lambda name: -shapely.Polygon(library[name].vertices).area)
+    names.sort(key=lambda name: -library[name].area)
     sc = Scenario()
     x0, x1, y0, y1 = sc.table
     margin = 0.01
