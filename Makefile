@@ -17,8 +17,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/mog-drake pick --objects 12 --seed 6 --record out/pick.html
 
+# On every core (pytest-xdist); `pytest tests/...` alone runs serially.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 # CI, after `make test`: sweeps on a real local Ray cluster, and the wheel installed outside
 # the checkout (slower: they install Ray, and the package with its dependencies).

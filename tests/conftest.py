@@ -48,3 +48,14 @@ def replay_dir(tmp_path_factory):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def station33():
+    """The station of the 33-object cluttered table of seed 11: (scenario, diagram, handles)."""
+    from mog_drake.scenario import ClutteredScene, Scenario
+    from mog_drake.station import MakeStation
+
+    sc = Scenario(scene=ClutteredScene(seed=11))
+    diagram, handles = MakeStation(sc)
+    return sc, diagram, handles

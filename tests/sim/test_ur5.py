@@ -1,5 +1,8 @@
+import math
+
 import numpy as np
 
+from mog_drake.scenario import Scenario
 from mog_drake.sim.ur5 import URDF_PATH, VELOCITY_LIMIT, forward_kinematics, ur5_urdf
 
 
@@ -31,3 +34,37 @@ def test_dh_reach_at_zero_is_the_published_one():
     # At q = 0 the UR5 stretches out along -x: |a2| + |a3| = 0.81725 m from the shoulder.
     T = forward_kinematics(np.zeros(6))
     assert abs(T[0, 3] + 0.81725) < 1e-9
+
+
+def test_ik_reaches_the_workspace_corners():
+    from mog_drake.systems.motion import ArmMotion
+
+    sc = Scenario()
+    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
+    for x, y, yaw in [
+        (-0.15, -0.15, 0.0),
+        (0.15, -0.15, 1.0),
+        (0.15, 0.15, 2.0),
+        (-0.15, 0.15, 3.0),
+        (0, 0, 0.5),
+        # The table's far corners: the camera sees the whole table, so objects pushed there
+        # are planned for.
+        (0.29, 0.29, 0.8),
+        (0.29, -0.29, 2.4),
+        (-0.29, -0.29, 1.6),
+    ]:
+        plan = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)
+        q = plan["approach"].value(plan["approach"].end_time()).ravel()
+        X = m.palm_pose(q)
+        np.testing.assert_allclose(X.translation(), [x, y, 0.042], atol=5e-4)
+        # Palm z up; its x axis along the grasp yaw (modulo pi).
+        R = X.rotation().matrix()
+        assert R[2, 2] > 0.999
+        assert abs(math.remainder(math.atan2(R[1, 0], R[0, 0]) - yaw, math.pi)) < 3e-3
+        for name in ("approach", "lift", "to_bin", "home"):
+            traj = plan[name]
+            ts = np.linspace(0, traj.end_time(), 50)
+            v = np.array([traj.EvalDerivative(t, 1).ravel() for t in ts])
+            # Carrying objects (lift, to the bin), the arm keeps to a fraction of its limits.
+            scale = m.config.carry_scale if name in ("lift", "to_bin") else 1.0
+            assert np.abs(v).max() <= scale * sc.robot.max_joint_speed * 1.02

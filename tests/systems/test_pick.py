@@ -1,7 +1,7 @@
-"""The pick loop never blocks: perception and planning run as jobs beside the Diagram, their
-results become visible after their latency in simulated time, and a table that changed after
-its image is planned again. These tests assert on simulated time and on what the systems
-received, not on wall-clock speed."""
+"""The pick Diagram end to end. Its loop never blocks: perception and planning run as jobs
+beside the Diagram, their results become visible after their latency in simulated time, and a
+table that changed after its image is planned again. These tests assert on simulated time and
+on what the systems received, not on wall-clock speed."""
 
 import time
 
@@ -12,8 +12,7 @@ from pydrake.systems.analysis import Simulator
 
 from mog_drake.config import LatencyConfig
 from mog_drake.planning.protocol import GraspResult
-from mog_drake.scenario import Scenario, SceneFile
-from mog_drake.systems.jobs import CPU, WALL, Worker, clock_of
+from mog_drake.scenario import ClutteredScene, Scenario, SceneFile
 from mog_drake.systems.pick import MakePickDiagram
 
 
@@ -114,46 +113,6 @@ def test_results_become_visible_only_after_their_latency(tmp_path):
     assert s.wait_perception == pytest.approx(0.1 + 0.3, abs=3 * period)
     assert s.wait_planning == pytest.approx(2.0, abs=3 * period)
     assert s.attempts and s.attempts[0]["start"] >= dec.t_visible - 1e-9
-
-
-def _spin(seconds):
-    """Busy for ``seconds`` of this thread's CPU time."""
-    end = time.thread_time() + seconds
-    while time.thread_time() < end:
-        pass
-    return "spun"
-
-
-def test_cpu_latency_counts_the_jobs_cpu_time_not_its_wall_time():
-    """A job that sleeps 0.3 s costs no CPU time: with the ``cpu`` clock it is visible as soon
-    as it is done; one that computes 0.2 s is not visible 0.1 s of simulated time after its
-    request, and is 0.25 s after it (the collecting event waits for it, as in simulation)."""
-
-    assert clock_of(LatencyConfig("cpu")) is CPU and clock_of(LatencyConfig()) is WALL
-    worker = Worker("test", CPU)
-    try:
-        sleeper = worker.submit(time.sleep, 0.3, t_request=0.0, counter=1)
-        assert sleeper.visible(0.05, None, block=True)
-        assert sleeper.wall_time() >= 0.3 and sleeper.cpu_time() < 0.05
-        spinner = worker.submit(_spin, 0.2, t_request=1.0, counter=2)
-        assert not spinner.visible(1.1, None, block=True)
-        assert spinner.visible(1.25, None, block=True)
-        assert spinner.result() == "spun" and 0.2 <= spinner.cpu_time() < 0.25
-    finally:
-        worker.shutdown()
-    wall = Worker("test", WALL)
-    try:
-        sleeper = wall.submit(time.sleep, 0.3, t_request=0.0, counter=1)
-        assert not sleeper.visible(0.05, None, block=True)
-        assert sleeper.visible(0.5, None, block=True)
-    finally:
-        wall.shutdown()
-
-
-def _spin_then(seconds, got=None):
-    """Busy for ``seconds`` of CPU, then returns ``got``."""
-    _spin(seconds)
-    return got
 
 
 @pytest.mark.parametrize("planning_s,expect", [(0.5, "used"), (6.0, "dropped")])
@@ -272,68 +231,6 @@ def test_the_arm_goes_from_the_bin_to_the_next_grasp_unless_told_to_return_home(
         assert s.attempts[0]["end"] < s.attempts[1]["start"]
 
 
-def test_arm_view_lets_the_next_image_be_taken_only_when_the_arm_hides_no_object_left():
-    """At the observe pose the arm hides nothing; with the jaws just above an object it hides
-    that object but not one across the table; carrying, it must first lift what it holds
-    above the heights perception looks at."""
-    from mog_drake.camera import camera_pose
-    from mog_drake.station import rendered_intrinsics
-    from mog_drake.systems.motion import ArmMotion
-    from mog_drake.systems.pick import arm_view
-
-    sc = Scenario()
-    view = arm_view(sc, rendered_intrinsics(sc.camera))
-    assert camera_pose(sc.camera) is not None
-    near = make_scene([("large_hexagon", 0.10, 0.05, 0.0)])
-    far = make_scene([("large_hexagon", -0.20, -0.30, 0.0)])
-
-    def prisms(scene):
-        return [(scene.polygon(0), scene.shape(0).height)]
-
-    assert view(sc.robot.home) and view.clear_of(sc.robot.home, False, prisms(near))
-    m = ArmMotion(sc.robot.base, sc.robot.max_joint_speed, sc.robot.max_joint_acceleration)
-    plan = m.pick_plan(np.array([0.10, 0.12, 0.0]), sc.robot.home, sc.bin.center, sc.bin.depth)
-    lift = plan["lift"]
-    low, high = lift.value(0.0).ravel(), lift.value(lift.end_time()).ravel()
-    assert not view(high, holding=True)  # above the table: it hides part of it
-    assert not view.clear_of(high, False, prisms(near))  # 7 cm from the grasp, under the arm
-    assert view.clear_of(high, False, prisms(far))
-    assert view.clear_of(high, True, prisms(far))  # what it carries hangs high enough
-    assert not view.clear_of(low, True, prisms(far))  # still at the grasp: it would be seen
-    # Its jaws open over the bin, the arm hides none of the table (motion.bin_clearance): the
-    # table can be checked from there (controller.return_home).
-    for x, y, yaw in [(0.10, 0.12, 0.0), (-0.2, 0.2, 1.0), (0.2, -0.2, 2.0), (-0.25, -0.25, 0.5)]:
-        q_bin = m.pick_plan(np.array([x, y, yaw]), sc.robot.home, sc.bin.center, sc.bin.depth)["home"]
-        assert view(q_bin.value(0.0).ravel())
-
-
-def test_the_change_check_sees_moved_and_uncovered_objects_not_a_millimetre(tmp_path):
-    """Perceiver.changed_pixels between two depth images: the same table gives 0; a hexagon
-    moved 1 mm gives 0 (its outline shifts by a pixel: no new plan for that); moved 6 mm,
-    hundreds; an object found where the first image saw the arm over the table counts too."""
-    from mog_drake.camera import camera_pose
-    from mog_drake.station import MakeStation, render_still
-
-    def depth_of(x):
-        scene = make_scene([("large_hexagon", x, 0.05, 0.3), ("blue_quad", -0.1, -0.1, 0.0)])
-        scene.save(tmp_path / "t.yaml")
-        sc = Scenario(scene=SceneFile(file=str(tmp_path / "t.yaml")))
-        d, h = MakeStation(sc)
-        return sc, h, np.array(render_still(sc, d)[1])
-
-    sc, h, d0 = depth_of(0.05)
-    perceiver = sc.perceiver()
-    args = (camera_pose(sc.camera), h.camera_intrinsics)
-    assert perceiver.changed_pixels(d0, d0.copy(), *args) == 0
-    assert perceiver.changed_pixels(d0, depth_of(0.051)[2], *args) == 0
-    assert perceiver.changed_pixels(d0, depth_of(0.056)[2], *args) > 100
-    armed = d0.copy()
-    rows, cols = np.nonzero(np.abs(d0 - 0.77) < 0.002)  # the hexagon's top (0.03 m high)
-    armed[rows, cols] = 0.3  # something 0.5 m above the table hid it
-    assert perceiver.changed_pixels(armed, d0, *args) > 100
-    assert perceiver.changed_pixels(armed, d0, *args, still=True) == 0  # not a motion: unknown
-
-
 def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_path, monkeypatch):
     """A grasp that the physics check trusts and the world keeps failing is not tried until
     the time limit. Here every planned grasp lands 6 cm beside its object (it closes on air),
@@ -374,26 +271,13 @@ def test_an_object_grasped_three_times_in_vain_is_given_up_and_the_run_ends(tmp_
     assert np.hypot(p[0] - 0.05, p[1] + 0.10) < 0.06 and abs(p[2]) < 0.01
 
 
-def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in_its_latency():
-    """On the CPU clock a job's time counts from its own start. A lookahead requested at 0.1,
-    queued on its thread behind one requested at 0 that spins 0.3 s, starts where that one
-    ended in simulated time, and that wait is latency: it is visible at its request plus the
-    wait plus its own CPU time. On the wall clock the queueing is in its time already."""
-    a = Worker("ahead", CPU)
-    try:
-        first = a.submit(_spin_then, 0.3, "first", t_request=0.0, counter=1)
-        second = a.submit(_spin_then, 0.2, "second", t_request=0.1, counter=2)
-        assert second.result() == "second"
-        assert second.waited() == pytest.approx(first.cpu_time() - 0.1) and second.waited() > 0.19
-        assert second.latency() == pytest.approx(second.cpu_time() + second.waited())
-        end = 0.1 + second.latency()
-        assert not second.visible(end - 0.05, None, block=True)
-        assert second.visible(end + 1e-6, None, block=True)
-    finally:
-        a.shutdown()
-    w = Worker("ahead", WALL)
-    try:
-        w.submit(_spin_then, 0.3, "first", t_request=0.0, counter=1)
-        assert w.submit(_spin_then, 0.01, "second", t_request=0.1, counter=2).waited() == 0.0
-    finally:
-        w.shutdown()
+def test_end_to_end_pick_clears_a_small_table():
+    from mog_drake.systems.pick import run_pick
+
+    sc = Scenario(scene=ClutteredScene(seed=5, n_objects=3), time_limit=60.0)
+    run = run_pick(sc)
+    s = run.summary()
+    assert s["finished"] == "table_clear" and s["picked_pct"] == 100.0
+    assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
+    assert all(a["carried"] is not None and len(a["carried"]) >= a["picked"] for a in run.attempts)
+    assert run.left == {} and s["left_in_view"] == s["left_out_of_view"] == s["left_off_table"] == 0

@@ -1,0 +1,106 @@
+"""eval picking: a tiny sweep, a sweep grown by a mode, the base scenario."""
+
+import json
+
+import pytest
+
+from mog_drake.scenario import ClutteredScene
+
+
+def test_tiny_picking_evaluation(tmp_path):
+    from mog_drake.experiments import picking_eval
+
+    summary, results = picking_eval.run(
+        1, ["mog", "sog"], seed=2, out_dir=tmp_path, objects=3, time_limit=60.0, progress=False
+    )
+    assert {r["mode"] for r in summary["rows"]} == {"mog", "sog"}
+    for r in summary["rows"]:
+        for k in ("success_rate", "picked_pct", "pph", "objects_per_success", "success_rate_ci"):
+            assert k in r
+    assert summary["pph_ratio_mog_over_sog"] > 0
+    assert len(results) == 2 and all(r["summary"]["objects"] == 3 for r in results)
+    for r, res in zip(
+        sorted(summary["rows"], key=lambda r: r["mode"]), sorted(results, key=lambda r: r["mode"])
+    ):
+        assert sum(r["finished"].values()) == r["scenes"] == 1 and res["summary"]["finished"] in r["finished"]
+        left = r["left_in_view"] + r["left_out_of_view"] + r["left_off_table"]
+        assert left == len(res["left"]) == round(3 * (1 - res["summary"]["picked_pct"] / 100))
+    assert picking_eval.losses_text(summary).count("runs ended:") == 2
+    mog = next(r for r in summary["rows"] if r["mode"] == "mog")
+    # The seeded 3-object table's grouping ceiling, computed again by hand from its scene.
+    (task,) = picking_eval.tasks(1, ["mog"], seed=2, objects=3, time_limit=60.0)
+    assert mog["grouping_ceiling"] == picking_eval.task_grouping_ceiling(task) >= 1.0
+    assert "grouping ceiling" in picking_eval.losses_text(summary)
+
+
+def test_a_picking_sweep_grows_by_a_mode_without_rerunning_the_other(tmp_path, monkeypatch):
+    from mog_drake.experiments import picking_eval
+    from mog_drake.systems import pick
+    from mog_drake.systems.pick_run import PickRun
+
+    seen = []
+
+    def fake_run(sc):
+        seen.append(sc.planner.mode)
+        return PickRun(objects=5, shapes=["cube"] * 5)
+
+    monkeypatch.setattr(pick, "run_pick", fake_run)
+    picking_eval.run(2, ["mog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    summary, results = picking_eval.run(
+        2, ["mog", "sog"], seed=4, out_dir=tmp_path, objects=5, progress=False
+    )
+    assert seen == ["mog", "mog", "sog", "sog"]
+    assert sorted(r["key"] for r in results) == ["s0-mog", "s0-sog", "s1-mog", "s1-sog"]
+    assert [r["mode"] for r in summary["rows"]] == ["mog", "sog"]
+    assert json.loads((tmp_path / "sweep.json").read_text())["modes"] == ["mog", "sog"]
+
+
+def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path, capsys, monkeypatch):
+    from mog_drake.cli import main
+    from mog_drake.errors import MogError
+    from mog_drake.experiments import picking_eval
+    from mog_drake.experiments.sweep import summary_only
+
+    text = "planner:\n  loop:\n    group_radius: 0.045\nverifier:\n  hold_time: 1.5\nrobot:\n  max_joint_speed: 2.0\n"
+    (task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0, scenario=text)
+    sc = picking_eval.task_scenario(task)
+    assert (sc.planner.loop.group_radius, sc.verifier.hold_time, sc.robot.max_joint_speed) == (
+        0.045,
+        1.5,
+        2.0,
+    )
+    assert (sc.planner.mode, sc.planner.seed, sc.scene.seed, sc.scene.n_objects) == (
+        "sog",
+        4_000_000,
+        4_000_000,
+        5,
+    )
+    assert (type(sc.scene), sc.time_limit) == (ClutteredScene, 60.0)
+    (default_task,) = picking_eval.tasks(1, ["sog"], seed=4, objects=5, time_limit=60.0)
+    assert (
+        "scenario" not in default_task
+        and picking_eval.task_scenario(default_task).planner.loop.group_radius == 0.035
+    )
+
+    from mog_drake.systems import pick
+    from mog_drake.systems.pick_run import PickRun
+
+    seen = []
+    monkeypatch.setattr(
+        pick, "run_pick", lambda sc: seen.append(sc) or PickRun(objects=5, shapes=["cube"] * 5)
+    )
+    record = picking_eval.picking_worker(task)
+    assert seen[0].planner.loop.group_radius == 0.045 and record["summary"]["objects"] == 5
+    assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
+
+    picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
+    assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
+    with pytest.raises(MogError, match="holds a sweep with scenario="):
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    with summary_only(), pytest.raises(MogError, match="holds a sweep with scenario="):
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("planner:\n  loop:\n    group_radius: -1\n")
+    assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "group_radius must be in" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()  # refused before anything was written
