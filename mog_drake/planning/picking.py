@@ -131,6 +131,7 @@ def next_pick(
         if not groups:
             return PickDecision("gave_up", planning_time=time.perf_counter() - t0)
     partial_lifts = spec.loop.partial_lifts and mode == "mog"
+    alone = spec.loop.sog_alone and mode == "sog"
     decision = PickDecision("no_grasp")
     best = None  # (grasp, lifted ids) of the tested candidate that lifted the most objects
     pending = list(failures or ())  # remembered failures not yet met in this scene
@@ -144,7 +145,7 @@ def next_pick(
             res = recall(pending, group, around, avoid)
             decision.remembered += res is not None
         if res is None:
-            res = planner.plan(scene, group, rng=rng, avoid=avoid)
+            res = planner.plan(scene, group, rng=rng, avoid=avoid, alone=alone)
         if failures is not None and not res.found:
             seen.append(FailedGroup(tuple(res.group), around, res))
         decision.plans.append(res)

@@ -155,12 +155,15 @@ class GraspPlanner:
         method: str | None = None,
         avoid=(),
         skip=(),
+        *,
+        alone: bool = False,
     ) -> PlanResult:
         """``avoid``: grasps (x, y, theta) not to try again; candidates within 5 mm and 0.15 rad
         (modulo pi: the jaws are symmetric) of one are skipped. ``skip``: candidate indices an
         earlier plan of the same scene and group already simulated (its ``tested_indices``):
         not simulated again, and their closing axes count as tried (``vary_axis``), so the plan
-        goes on where the earlier one stopped."""
+        goes on where the earlier one stopped. ``alone``: a check that lifts any object beyond
+        the group is no success (`LoopConfig.sog_alone`)."""
         method, group = _method_and_group(method or self.config.method, group, rng)
         cfg = self.config
         t_start = time.perf_counter()
@@ -216,7 +219,7 @@ class GraspPlanner:
             held = last.complete and not last.error and last.lifted
             if held and (best_lift is None or len(last.lifted) > len(best_lift[1])):
                 best_lift = (cands[i].copy(), sorted(int(k) for k in last.lifted))
-            if last.success:
+            if last.success and not (alone and set(last.lifted) - set(group)):
                 grasp = cands[i].copy()
                 break
         times["physics"] = time.perf_counter() - t

@@ -256,6 +256,36 @@ def test_a_large_group_gets_fewer_checks_and_the_last_resort_goes_past_them(scen
     assert d.plans[0].group == trio and d.plans[0].tested == 2
 
 
+def test_sog_alone_takes_only_a_grasp_whose_check_lifts_the_object_alone():
+    """Two bars side by side: the first two candidates of either bar lift both, the third only
+    the bar planned for. Plain sog takes the first (two objects expected); with
+    loop.sog_alone the check that lifts a neighbour is no success and the third is taken."""
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene([("thin_bar", -0.012, 0.0, math.pi / 2), ("thin_bar", 0.0, 0.0, math.pi / 2)])
+
+    class NeighbourAlongTwice(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            both = len(self.asked) <= 2
+            return GraspResult(True, lifted=[0, 1] if both else list(group))
+
+    config = GraspConfig("gp", max_physics=4)
+    v = NeighbourAlongTwice()
+    d = next_pick(scene, GraspPlanner(v, config), PlannerSpec(mode="sog"), rng=np.random.default_rng(0))
+    assert d.status == "grasp" and len(d.group) == 1 and d.expected == (0, 1) and d.physics_checks == 1
+
+    v = NeighbourAlongTwice()
+    spec = PlannerSpec(mode="sog", loop=LoopConfig(sog_alone=True))
+    d = next_pick(scene, GraspPlanner(v, config), spec, rng=np.random.default_rng(0))
+    assert d.status == "grasp" and d.expected == d.group and len(d.group) == 1 and d.physics_checks == 3
+    np.testing.assert_allclose(d.grasp, d.plans[0].candidate_grasps[d.plans[0].tested_indices[2]])
+    # mog is not touched by the setting: the pair lifted is its group.
+    v = NeighbourAlongTwice()
+    d = next_pick(scene, GraspPlanner(v, config), PlannerSpec(mode="mog", loop=LoopConfig(sog_alone=True)))
+    assert d.status == "grasp" and d.expected == (0, 1) and d.physics_checks == 1
+
+
 def test_a_partial_lift_is_taken_once_no_larger_group_is_left():
     """Three bars in a row: physics never lifts all three, but one candidate lifts two.
     With partial lifts that verified pair is the grasp (no pair or single is planned);
