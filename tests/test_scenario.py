@@ -84,8 +84,6 @@ def test_scenario_yaml_overrides_defaults(tmp_path):
     assert sc.camera.width == 640  # untouched defaults remain
     bad = tmp_path / "bad.yaml"
     bad.write_text("scene: {colour: red}\n")
-    from mog_drake.errors import MogError
-
     with pytest.raises(MogError, match="bad.yaml"):
         load_scenario(str(bad))
 
@@ -102,8 +100,6 @@ def test_committed_scenario_file_matches_the_defaults():
 def test_every_setting_is_reachable_from_yaml():
     """Every field of every nested config, the project's dataclasses and Drake's structs alike,
     is a key of models/scenario.yaml, so it can be set from a scenario file."""
-    import dataclasses
-
     import yaml
 
     from mog_drake.scenario import SCENARIO_YAML
