@@ -61,7 +61,9 @@ def outcome(a: dict) -> str:
 
 def attempts(folder):
     """One row per grasp attempt of a picking sweep: when (simulated s), the group's size and
-    shapes, what it meant to take, what it took, its planning time and its outcome."""
+    shapes, what it meant to take, what it took, its planning time, its outcome, and how many
+    objects its open jaws came down on (ground truth; None in sweeps from before it was
+    recorded)."""
     pd = _pd()
     rows = []
     for r in _records(folder):
@@ -81,6 +83,7 @@ def attempts(folder):
                     "planning_s": a.get("planning_time"),
                     "held_width_mm": 1e3 * (a.get("held_width") or 0.0),
                     "outcome": outcome(a),
+                    "jaws_on": None if a.get("jaws_on") is None else len(a["jaws_on"]),
                 }
             )
     return pd.DataFrame(rows)

@@ -1,9 +1,14 @@
 """Scoring from the simulated station's ground truth: what is in the bin, where the rest lies.
 It stays outside the application Diagram: the application never reads ground truth."""
 
+import numpy as np
+
 from mog_drake.camera import camera_sees
+from mog_drake.geometry.conditions import jaw_collision_free
+from mog_drake.geometry.gripper import GripperGeometry
 from mog_drake.perception import within_reach
 from mog_drake.scenario import Scenario
+from mog_drake.scenes import SceneObject
 
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
@@ -43,4 +48,24 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
         else:
             where = "out of view"
         out[int(i)] = (where, [round(float(v), 3) for v in p])
+    return out
+
+
+def jaws_land_on(plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()) -> list[int]:
+    """Scoring only (ground truth): the objects lying on the table where the open jaws of
+    ``grasp`` come down, their true footprints (``scene``'s shapes at the plant's poses)
+    under a jaw's plate. The planner placed the jaws clear of the objects as it perceived
+    them; an object here is one the plates land on."""
+    out = []
+    for i, b in bodies.items():
+        if i in skip:
+            continue
+        X = plant.EvalBodyPoseInWorld(plant_context, b)
+        p, R = X.translation(), X.rotation().matrix()
+        if not -0.02 < p[2] < 0.08:  # not on the table: in the air, in the bin or on the floor
+            continue
+        o = SceneObject(scene.objects[i].shape, float(p[0]), float(p[1]), float(np.arctan2(R[1, 0], R[0, 0])))
+        one = type(scene)([o], scene.library, table=scene.table)
+        if not jaw_collision_free(one.polygons(), np.asarray(grasp, float)[None, :], gripper)[0]:
+            out.append(int(i))
     return out

@@ -12,12 +12,12 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from mog_drake.camera import camera_pose
 from mog_drake.errors import HardwareFault, StationFault, stop_on_signals
-from mog_drake.geometry.gripper import OPEN_WIDTH
+from mog_drake.geometry.gripper import OPEN_WIDTH, GripperGeometry
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
-from mog_drake.station.scoring import objects_in_bin, where_left
+from mog_drake.station.scoring import jaws_land_on, objects_in_bin, where_left
 from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
@@ -244,6 +244,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     done_attempts = done_pushes = 0
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
+    landed: dict[int, list[int]] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
         if scored and np.all(np.isfinite(x := handles.plant.GetPositionsAndVelocities(plant_ctx))):
@@ -262,6 +263,10 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
         if sleep:
             sleep.update(ctx, skip=gone)
         s = controller.state(ctrl_ctx)
+        if scored and s.mode == "approach" and len(s.attempts) - 1 not in landed and s.attempts:
+            landed[len(s.attempts) - 1] = jaws_land_on(
+                handles.plant, plant_ctx, handles.bodies, handles.scene, s.attempts[-1]["grasp"], GripperGeometry(), gone
+            )
         if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
             old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone))
             carried[len(s.attempts) - 1] = [
@@ -282,6 +287,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 # not in the bin at the end fell on the way.
                 a["carried"] = carried.get(done_attempts)
                 a["carried_shapes"] = [handles.scene.objects[i].shape for i in a["carried"] or ()]
+                a["jaws_on"] = landed.get(done_attempts)
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None

@@ -130,6 +130,34 @@ def test_objects_outside_the_bin_are_located():
     assert [left[i][0] for i in range(4)] == ["in view", "out of view", "off the table", "out of view"]
 
 
+def test_the_objects_under_an_attempts_open_jaws_are_found_at_their_true_poses():
+    """Scoring: where the jaws come down is judged at the plant's poses, not the perceived ones;
+    an object moved under a plate is found, one lifted off the table or skipped is not."""
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from mog_drake.geometry.gripper import GripperGeometry
+    from mog_drake.station.scoring import jaws_land_on
+
+    sc = Scenario(scene=ClutteredScene(seed=3, n_objects=4))
+    d, h = MakeStation(sc)
+    pc = h.plant.GetMyMutableContextFromRoot(d.CreateDefaultContext())
+    g = GripperGeometry()
+    grasp = [0.0, 0.1, 0.3]
+    for i in range(4):  # every object far from the grasp
+        h.plant.SetFreeBodyPose(pc, h.bodies[i], RigidTransform([0.2, -0.25 + 0.1 * i, 0.02]))
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == []
+    # Object 2's centre under the right plate (grasp frame +x), yawed with the grasp.
+    right = np.array([np.cos(0.3), np.sin(0.3)]) * (g.w_g / 2 + g.plate_thickness / 2)
+    at = RigidTransform(RotationMatrix.MakeZRotation(0.3), [right[0], 0.1 + right[1], 0.02])
+    h.plant.SetFreeBodyPose(pc, h.bodies[2], at)
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == [2]
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g, skip=(2,)) == []
+    # Between the plates, inside S, is no landing; in the air (carried) neither.
+    h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.1, 0.02]))
+    h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([right[0], 0.1 + right[1], 0.3]))
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == []
+
+
 def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
