@@ -62,8 +62,8 @@ def outcome(a: dict) -> str:
 def attempts(folder):
     """One row per grasp attempt of a picking sweep: when (simulated s), the group's size and
     shapes, what it meant to take, what it took, its planning time, its outcome, and how many
-    objects its open jaws came down on (ground truth; None in sweeps from before it was
-    recorded)."""
+    objects its open jaws came down on and how far onto the deepest (mm; ground truth; None in
+    sweeps from before it was recorded)."""
     pd = _pd()
     rows = []
     for r in _records(folder):
@@ -84,6 +84,7 @@ def attempts(folder):
                     "held_width_mm": 1e3 * (a.get("held_width") or 0.0),
                     "outcome": outcome(a),
                     "jaws_on": None if a.get("jaws_on") is None else len(a["jaws_on"]),
+                    "landed_mm": None if a.get("jaws_on") is None else max(a["jaws_on"].values(), default=0.0),
                 }
             )
     return pd.DataFrame(rows)

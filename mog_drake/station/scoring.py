@@ -4,11 +4,11 @@ It stays outside the application Diagram: the application never reads ground tru
 import numpy as np
 
 from mog_drake.camera import camera_sees
-from mog_drake.geometry.conditions import jaw_collision_free
-from mog_drake.geometry.gripper import GripperGeometry
+from mog_drake.geometry.clip import strip_extent
+from mog_drake.geometry.gripper import GripperGeometry, to_grasp_frame
+from mog_drake.geometry.polygon import LENGTH_TOL, transform
 from mog_drake.perception import within_reach
 from mog_drake.scenario import Scenario
-from mog_drake.scenes import SceneObject
 
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
@@ -51,12 +51,14 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
     return out
 
 
-def jaws_land_on(plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()) -> list[int]:
+def jaws_land_on(plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()) -> dict[int, float]:
     """Scoring only (ground truth): the objects lying on the table where the open jaws of
     ``grasp`` come down, their true footprints (``scene``'s shapes at the plant's poses)
-    under a jaw's plate. The planner placed the jaws clear of the objects as it perceived
-    them; an object here is one the plates land on."""
-    out = []
+    under a jaw's plate, each with how far the plate lands onto it along the closing axis
+    (m, at most the plate's thickness: the plate wholly on it). The planner placed the jaws
+    clear of the objects as it perceived them; an object here is one a plate lands on."""
+    hw, t, hy = gripper.w_g / 2, gripper.plate_thickness, gripper.plate_width / 2
+    out = {}
     for i, b in bodies.items():
         if i in skip:
             continue
@@ -64,8 +66,13 @@ def jaws_land_on(plant, plant_context, bodies, scene, grasp, gripper: GripperGeo
         p, R = X.translation(), X.rotation().matrix()
         if not -0.02 < p[2] < 0.08:  # not on the table: in the air, in the bin or on the floor
             continue
-        o = SceneObject(scene.objects[i].shape, float(p[0]), float(p[1]), float(np.arctan2(R[1, 0], R[0, 0])))
-        one = type(scene)([o], scene.library, table=scene.table)
-        if not jaw_collision_free(one.polygons(), np.asarray(grasp, float)[None, :], gripper)[0]:
-            out.append(int(i))
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+        footprint = transform(scene.library[scene.objects[i].shape].vertices, float(p[0]), float(p[1]), yaw)
+        P = to_grasp_frame(footprint[None], np.asarray(grasp, float))
+        lo, hi, has = strip_extent(P, -hy, hy)
+        if not has[0]:
+            continue
+        depth = max(min(hi[0], -hw) - max(lo[0], -hw - t), min(hi[0], hw + t) - max(lo[0], hw))
+        if depth > LENGTH_TOL:
+            out[int(i)] = float(depth)
     return out

@@ -244,7 +244,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     done_attempts = done_pushes = 0
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
-    landed: dict[int, list[int]] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
+    landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
         if scored and np.all(np.isfinite(x := handles.plant.GetPositionsAndVelocities(plant_ctx))):
@@ -287,7 +287,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 # not in the bin at the end fell on the way.
                 a["carried"] = carried.get(done_attempts)
                 a["carried_shapes"] = [handles.scene.objects[i].shape for i in a["carried"] or ()]
-                a["jaws_on"] = landed.get(done_attempts)
+                # Where its open jaws came down: {object: how far a plate landed on it (mm)}.
+                on = landed.get(done_attempts)
+                a["jaws_on"] = None if on is None else {str(i): round(1e3 * d, 2) for i, d in on.items()}
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None

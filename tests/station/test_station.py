@@ -131,8 +131,9 @@ def test_objects_outside_the_bin_are_located():
 
 
 def test_the_objects_under_an_attempts_open_jaws_are_found_at_their_true_poses():
-    """Scoring: where the jaws come down is judged at the plant's poses, not the perceived ones;
-    an object moved under a plate is found, one lifted off the table or skipped is not."""
+    """Scoring: where the jaws come down is judged at the plant's poses, not the perceived ones,
+    with how far a plate lands on each object; an object lifted off the table or skipped is
+    not counted, nor one between the plates."""
     from pydrake.math import RigidTransform, RotationMatrix
 
     from mog_drake.geometry.gripper import GripperGeometry
@@ -142,20 +143,27 @@ def test_the_objects_under_an_attempts_open_jaws_are_found_at_their_true_poses()
     d, h = MakeStation(sc)
     pc = h.plant.GetMyMutableContextFromRoot(d.CreateDefaultContext())
     g = GripperGeometry()
-    grasp = [0.0, 0.1, 0.3]
+    yaw, grasp = 0.3, [0.0, 0.1, 0.3]
+    axis = np.array([np.cos(yaw), np.sin(yaw)])  # the grasp's closing axis
+
+    def put(i, x_along, z=0.02):  # object i yawed with the grasp, x_along the closing axis
+        p = np.array([0.0, 0.1]) + x_along * axis
+        h.plant.SetFreeBodyPose(pc, h.bodies[i], RigidTransform(RotationMatrix.MakeZRotation(yaw), [*p, z]))
+
     for i in range(4):  # every object far from the grasp
         h.plant.SetFreeBodyPose(pc, h.bodies[i], RigidTransform([0.2, -0.25 + 0.1 * i, 0.02]))
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == []
-    # Object 2's centre under the right plate (grasp frame +x), yawed with the grasp.
-    right = np.array([np.cos(0.3), np.sin(0.3)]) * (g.w_g / 2 + g.plate_thickness / 2)
-    at = RigidTransform(RotationMatrix.MakeZRotation(0.3), [right[0], 0.1 + right[1], 0.02])
-    h.plant.SetFreeBodyPose(pc, h.bodies[2], at)
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == [2]
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g, skip=(2,)) == []
-    # Between the plates, inside S, is no landing; in the air (carried) neither.
-    h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([0.0, 0.1, 0.02]))
-    h.plant.SetFreeBodyPose(pc, h.bodies[1], RigidTransform([right[0], 0.1 + right[1], 0.3]))
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == []
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {}
+    right = g.w_g / 2 + g.plate_thickness / 2  # the right plate's centre
+    put(2, right)  # object 2's centre under the right plate: the plate lands wholly on it
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {2: pytest.approx(g.plate_thickness)}
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g, skip=(2,)) == {}
+    # Only its last 3 mm under the plate.
+    reach = h.scene.library[h.scene.objects[2].shape].vertices[:, 0].max()
+    put(2, g.w_g / 2 + 0.003 - reach)
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {2: pytest.approx(0.003)}
+    put(2, 0.0)  # between the plates: no landing; nor in the air (carried)
+    put(1, right, z=0.3)
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {}
 
 
 def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
