@@ -7,6 +7,7 @@
 * perception, station, replanning, rest: rendered tables, the station's step (and where a
   pick run's CPU goes, `bench.cell`), replanning, objects at rest on the station's table
   (`bench.station`)
+* landing: an open plate coming down on an object in the station (`bench.landing`)
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ BENCHES = {
     "rest": "whether every shape lies still on the station's table",
     "calibration": "the camera's pose from a rendered board against the drawn true pose",
     "large": "time and memory of the station, perception and the first decision, 33 to 300 objects",
+    "landing": "what the station does when an open plate comes down on an object",
 }
 
 
@@ -126,6 +128,13 @@ def run(
         bar = Progress(5, what, enabled=progress)
         rows = bench_large(seed=seed, progress=bar)
         bar.close()
+    elif what == "landing":
+        from mog_drake.experiments.bench.landing import bench_landing, landing_text
+
+        bar = Progress(15, what, enabled=progress)
+        rows = bench_landing(progress=bar)
+        bar.close()
+        return {what: rows}, format_table(rows) + "\n" + landing_text(rows)
     elif what == "rest":
         from mog_drake.experiments.bench.station import bench_rest, rest_text
 

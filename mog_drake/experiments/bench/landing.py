@@ -1,0 +1,123 @@
+"""What the simulated station does when an open plate comes down on an object (`bench landing`).
+
+A target (a large hexagon) and a neighbour 65 mm from it along the grasp's closing axis; the
+controller is given one grasp on the target, moved along that axis so that one plate comes down
+``overlap`` mm onto the neighbour (a negative overlap: that far clear of it). The station runs
+the attempt as a pick run would (no perception, no planner: the decision is fixed) and reports
+where the neighbour went and whether the target reached the bin. On the real cell a rigid object
+under a descending plate cannot be pressed into the table: the arm stops on it (its force limit)
+or the plate rests on it, and the grasp fails. docs/physics.md has the measurement.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TARGET, GAP = "large_hexagon", 0.065  # the target; the neighbour's centre this far along -x
+NEIGHBOURS = ("thin_bar", "small_yellow_cube", "blue_quad")
+OVERLAPS_MM = (-3.0, 1.0, 3.0, 6.0, 10.0)
+
+
+def landing_attempt(neighbour: str, overlap: float) -> dict:
+    """One attempt on the target whose left plate comes down ``overlap`` (m) onto the neighbour."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantValueSource
+
+    from mog_drake.geometry.gripper import OPEN_WIDTH, GripperGeometry
+    from mog_drake.planning.decision import PickDecision
+    from mog_drake.scenario import Scenario
+    from mog_drake.scenes import Scene, SceneObject, default_library
+    from mog_drake.station import MakeStation
+    from mog_drake.station.scoring import objects_in_bin
+    from mog_drake.systems.controller import ControllerSystem
+    from mog_drake.systems.messages import Checked, Decision, Perceived
+    from mog_drake.systems.motion import ArmMotion
+
+    lib = default_library()
+    x0, y0 = 0.05, -0.05
+    scene = Scene(
+        [SceneObject(TARGET, x0, y0, 0.0), SceneObject(neighbour, x0 - GAP, y0, 0.0)], lib
+    ).validate()
+    g = GripperGeometry()
+    # Closing axis along x: the left plate's inner face at grasp-frame x = -w_g/2 lands on the
+    # neighbour's nearest edge (world x0 - GAP + its half extent) less ``overlap``.
+    near = x0 - GAP + lib[neighbour].vertices[:, 0].max()
+    grasp = np.array([near - overlap + g.w_g / 2, y0, 0.0])
+    sc = Scenario()
+    station, h = MakeStation(sc, scene)
+    gp = sc.gripper
+    controller = ControllerSystem(
+        ArmMotion(
+            sc.robot.base,
+            sc.robot.max_joint_speed,
+            sc.robot.max_joint_acceleration,
+            sc.motion,
+            finger_height=gp.finger_height,
+            finger_clearance=gp.finger_clearance,
+            q_home=sc.robot.home,
+        ),
+        sc.robot.home,
+        sc.bin.center,
+        sc.bin.depth,
+        open_width=OPEN_WIDTH,
+        close_time=OPEN_WIDTH / 2 / gp.close_speed + sc.controller.close_margin,
+        time_limit=sc.time_limit,
+        config=sc.controller,
+    )
+    b = DiagramBuilder()
+    b.AddSystem(station)
+    b.AddSystem(controller)
+    fixed = {
+        "decision": Decision(1, PickDecision("grasp", grasp, (0,)), 1),
+        "scene": Perceived(counter=10**6),
+        "checked": Checked(counter=10**6),
+    }
+    for port, value in fixed.items():
+        src = b.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
+        b.Connect(src.get_output_port(), controller.GetInputPort(port))
+    for a, c in (("ur5.position_measured", "ur5.position_measured"), ("gripper.state_measured", "gripper.state_measured")):
+        b.Connect(station.GetOutputPort(a), controller.GetInputPort(c))
+    for p in ("ur5.position", "gripper.position"):
+        b.Connect(controller.GetOutputPort(p), station.GetInputPort(p))
+    sim = Simulator(b.Build())
+    ApplySimulatorConfig(sc.simulator, sim)
+    ctx = sim.get_mutable_context()
+    cctx = controller.GetMyContextFromRoot(ctx)
+    pc = h.plant.GetMyContextFromRoot(ctx)
+    start = h.plant.EvalBodyPoseInWorld(pc, h.bodies[1]).translation().copy()
+    while ctx.get_time() < 20.0:
+        sim.AdvanceTo(ctx.get_time() + 0.1)
+        a = controller.state(cctx).attempts
+        if a and "end" in a[0] and ctx.get_time() > a[0]["end"] + 1.0:
+            break
+    X = h.plant.EvalBodyPoseInWorld(pc, h.bodies[1])
+    tilt = float(np.degrees(np.arccos(np.clip(X.rotation().matrix()[2, 2], -1.0, 1.0))))
+    return {
+        "neighbour": neighbour,
+        "overlap_mm": round(1e3 * overlap, 1),
+        "neighbour_moved_mm": round(1e3 * float(np.linalg.norm(X.translation()[:2] - start[:2])), 1),
+        "neighbour_tilt_deg": round(tilt),
+        "target_in_bin": 0 in objects_in_bin(h.plant, pc, h.bodies, sc),
+    }
+
+
+def bench_landing(progress=None) -> list[dict]:
+    rows = []
+    for n in NEIGHBOURS:
+        for o in OVERLAPS_MM:
+            rows.append(landing_attempt(n, o * 1e-3))
+            if progress is not None:
+                progress.step()
+    return rows
+
+
+def landing_text(rows: list[dict]) -> str:
+    landed = [r for r in rows if r["overlap_mm"] > 0]
+    moved = [r for r in landed if r["neighbour_moved_mm"] > 5 or r["neighbour_tilt_deg"] > 30]
+    return (
+        f"a plate came down on the neighbour in {len(landed)} attempts: the target reached the bin in "
+        f"{sum(r['target_in_bin'] for r in landed)}, the neighbour was pushed aside or tipped over in "
+        f"{len(moved)} (a rigid object under a real plate would stop the arm or hold the plate up)"
+    )
