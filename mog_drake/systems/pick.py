@@ -17,7 +17,7 @@ from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
-from mog_drake.station.scoring import jaws_land_on, objects_in_bin, where_left
+from mog_drake.station.scoring import finger_forces, jaws_land_on, objects_in_bin, where_left
 from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
@@ -245,6 +245,10 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     in_bin_before = 0
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
+    pressed: dict[int, float] = {}  # attempt index -> the largest force its open fingers put on an object (N)
+    if scored:
+        fingers = {handles.plant.GetBodyByName(f"{s}_finger", handles.robot).index() for s in ("left", "right")}
+        objects = {b.index() for b in handles.bodies.values()}
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
         if scored and np.all(np.isfinite(x := handles.plant.GetPositionsAndVelocities(plant_ctx))):
@@ -267,6 +271,10 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
             landed[len(s.attempts) - 1] = jaws_land_on(
                 handles.plant, plant_ctx, handles.bodies, handles.scene, s.attempts[-1]["grasp"], GripperGeometry(), gone
             )
+        if scored and s.mode == "approach" and s.attempts:
+            on = finger_forces(handles.plant, handles.scene_graph, plant_ctx, fingers, objects)
+            k = len(s.attempts) - 1
+            pressed[k] = max(pressed.get(k, 0.0), *on.values(), 0.0)
         if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
             old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone))
             carried[len(s.attempts) - 1] = [
@@ -290,6 +298,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 # Where its open jaws came down: {object: how far a plate landed on it (mm)}.
                 on = landed.get(done_attempts)
                 a["jaws_on"] = None if on is None else {str(i): round(1e3 * d, 2) for i, d in on.items()}
+                # The largest force the open fingers put on any object on the way down (N),
+                # sampled every `step`: a real arm stops at its force limit (UR5: 150 N).
+                a["approach_force"] = round(pressed.get(done_attempts, 0.0), 1)
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None

@@ -281,5 +281,5 @@ def test_end_to_end_pick_clears_a_small_table():
     assert run.in_bin == 3 and s["attempts"] >= 1 and all("picked" in a for a in run.attempts)
     assert all(a["carried"] is not None and len(a["carried"]) >= a["picked"] for a in run.attempts)
     # Where each attempt's open jaws came down is scored at the true poses (`jaws_land_on`).
-    assert all(isinstance(a["jaws_on"], dict) for a in run.attempts)
+    assert all(isinstance(a["jaws_on"], dict) and a["approach_force"] >= 0.0 for a in run.attempts)
     assert run.left == {} and s["left_in_view"] == s["left_out_of_view"] == s["left_off_table"] == 0

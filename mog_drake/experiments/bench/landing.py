@@ -22,6 +22,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     """One attempt on the target whose left plate comes down ``overlap`` (m) onto the neighbour."""
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+    from pydrake.systems.framework import EventStatus
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantValueSource
 
@@ -30,7 +31,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     from mog_drake.scenario import Scenario
     from mog_drake.scenes import Scene, SceneObject, default_library
     from mog_drake.station import MakeStation
-    from mog_drake.station.scoring import objects_in_bin
+    from mog_drake.station.scoring import finger_forces, objects_in_bin
     from mog_drake.systems.controller import ControllerSystem
     from mog_drake.systems.messages import Checked, Decision, Perceived
     from mog_drake.systems.motion import ArmMotion
@@ -41,10 +42,10 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
         [SceneObject(TARGET, x0, y0, 0.0), SceneObject(neighbour, x0 - GAP, y0, 0.0)], lib
     ).validate()
     g = GripperGeometry()
-    # Closing axis along x: the left plate's inner face at grasp-frame x = -w_g/2 lands on the
-    # neighbour's nearest edge (world x0 - GAP + its half extent) less ``overlap``.
+    # Closing axis along x: the left plate spans grasp-frame x in [-w_g/2 - t, -w_g/2]; its
+    # outer face comes down ``overlap`` inside the neighbour's nearest edge.
     near = x0 - GAP + lib[neighbour].vertices[:, 0].max()
-    grasp = np.array([near - overlap + g.w_g / 2, y0, 0.0])
+    grasp = np.array([near - overlap + g.plate_thickness + g.w_g / 2, y0, 0.0])
     sc = Scenario()
     station, h = MakeStation(sc, scene)
     gp = sc.gripper
@@ -87,6 +88,16 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     cctx = controller.GetMyContextFromRoot(ctx)
     pc = h.plant.GetMyContextFromRoot(ctx)
     start = h.plant.EvalBodyPoseInWorld(pc, h.bodies[1]).translation().copy()
+    fingers = {h.plant.GetBodyByName(f"{s}_finger", h.robot).index() for s in ("left", "right")}
+    peak = [0.0]
+
+    def monitor(root):  # the largest force the fingers put on the neighbour before the jaws close
+        if controller.state(controller.GetMyContextFromRoot(root)).mode == "approach":
+            on = finger_forces(h.plant, h.scene_graph, pc, fingers, {h.bodies[1].index()})
+            peak[0] = max(peak[0], *on.values(), 0.0)
+        return EventStatus.DidNothing()
+
+    sim.set_monitor(monitor)
     while ctx.get_time() < 20.0:
         sim.AdvanceTo(ctx.get_time() + 0.1)
         a = controller.state(cctx).attempts
@@ -99,6 +110,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
         "overlap_mm": round(1e3 * overlap, 1),
         "neighbour_moved_mm": round(1e3 * float(np.linalg.norm(X.translation()[:2] - start[:2])), 1),
         "neighbour_tilt_deg": round(tilt),
+        "peak_force_N": round(peak[0], 1),
         "target_in_bin": 0 in objects_in_bin(h.plant, pc, h.bodies, sc),
     }
 
