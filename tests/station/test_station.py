@@ -281,10 +281,14 @@ def test_an_empty_scene_builds_a_station_with_no_objects():
 
 def test_a_plate_coming_down_on_a_neighbour_shoves_it_aside_and_the_grasp_goes_on():
     """What the station does where a rigid world would not (`bench landing`, docs/physics.md):
-    the open plate lands 6 mm onto a cube beside the target; the cube is tipped over or pushed
-    away, and the target still reaches the bin."""
+    the open plate lands 6 mm onto a cube beside the target; the cube is pushed away (or tipped
+    over) with the fingers pressing on it, and the target still reaches the bin. 3 mm clear of
+    it, the plate does not touch it."""
     from mog_drake.experiments.bench.landing import landing_attempt
 
     r = landing_attempt("small_yellow_cube", 0.006)
     assert r["target_in_bin"]
     assert r["neighbour_tilt_deg"] > 30 or r["neighbour_moved_mm"] > 5
+    assert r["peak_force_N"] > 20.0  # the fingers pressed on it (`finger_forces`)
+    clear = landing_attempt("small_yellow_cube", -0.003)  # 3 mm clear of it: untouched
+    assert clear["target_in_bin"] and clear["peak_force_N"] == 0.0 and clear["neighbour_moved_mm"] < 0.5
