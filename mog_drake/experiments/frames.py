@@ -3,7 +3,8 @@
 * `runs`: one row per run (a table in a mode) with its summary;
 * `attempts`: one row per grasp attempt, with its outcome and the cause of a failure;
 * `paired`: two sweeps of the same tables, per measure their paired difference;
-* `study`: the uncertainty study's levels, one row per level and mode.
+* `study`: the uncertainty study's levels, one row per level and mode;
+* `landings`: where the open plates came down, per sweep and mode.
 """
 
 from __future__ import annotations
@@ -84,7 +85,10 @@ def attempts(folder):
                     "held_width_mm": 1e3 * (a.get("held_width") or 0.0),
                     "outcome": outcome(a),
                     "jaws_on": None if a.get("jaws_on") is None else len(a["jaws_on"]),
-                    "landed_mm": None if a.get("jaws_on") is None else max(a["jaws_on"].values(), default=0.0),
+                    "landed_mm": None
+                    if a.get("jaws_on") is None
+                    else max(a["jaws_on"].values(), default=0.0),
+                    "approach_force": a.get("approach_force"),
                 }
             )
     return pd.DataFrame(rows)
@@ -113,4 +117,39 @@ def study(levels: dict):
             continue
         for row in summarize(res, sorted({r["mode"] for r in res}))["rows"]:
             rows.append({"level": level, **row})
+    return pd.DataFrame(rows)
+
+
+# A plate that comes down at least this far onto an object counts as landing on it (mm); a real
+# arm stops at the TCP force limit of its safety configuration: 150 N here is a setting, not a
+# measurement (pass another).
+LANDED_MM, STOP_N = 1.0, 150.0
+
+
+def landings(sweeps: dict, landed_mm: float = LANDED_MM, stop_n: float = STOP_N):
+    """Where the open plates came down (ground truth, from sweeps that recorded it):
+    {name: sweep folder} -> one row per sweep and mode: attempts, the share whose plates came
+    down ``landed_mm`` or more onto an object, the success of those and of all, the success had
+    every such attempt failed (as on a rigid object, docs/physics.md), and the share whose open
+    fingers pressed an object with ``stop_n`` or more (a real arm would have stopped)."""
+    pd = _pd()
+    rows = []
+    for name, folder in sweeps.items():
+        att = attempts(folder)
+        att = att[att.jaws_on.notna()] if len(att) else att
+        for mode, g in att.groupby("mode") if len(att) else ():
+            landed = g.landed_mm >= landed_mm
+            taken = g.picked.fillna(0) > 0
+            rows.append(
+                {
+                    "sweep": name,
+                    "mode": mode,
+                    "attempts": len(g),
+                    "landed_pct": 100 * landed.mean(),
+                    "success_if_landed_pct": 100 * taken[landed].mean() if landed.any() else float("nan"),
+                    "success_pct": 100 * taken.mean(),
+                    "success_if_landings_fail_pct": 100 * (taken & ~landed).mean(),
+                    "pressed_to_stop_pct": 100 * (g.approach_force >= stop_n).mean(),
+                }
+            )
     return pd.DataFrame(rows)

@@ -51,7 +51,9 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
     return out
 
 
-def jaws_land_on(plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()) -> dict[int, float]:
+def jaws_land_on(
+    plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()
+) -> dict[int, float]:
     """Scoring only (ground truth): the objects lying on the table where the open jaws of
     ``grasp`` come down, their true footprints (``scene``'s shapes at the plant's poses)
     under a jaw's plate, each with how far the plate lands onto it along the closing axis

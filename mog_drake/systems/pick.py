@@ -247,7 +247,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
     pressed: dict[int, float] = {}  # attempt index -> the largest force its open fingers put on an object (N)
     if scored:
-        fingers = {handles.plant.GetBodyByName(f"{s}_finger", handles.robot).index() for s in ("left", "right")}
+        fingers = {
+            handles.plant.GetBodyByName(f"{s}_finger", handles.robot).index() for s in ("left", "right")
+        }
         objects = {b.index() for b in handles.bodies.values()}
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
@@ -269,7 +271,13 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
         s = controller.state(ctrl_ctx)
         if scored and s.mode == "approach" and len(s.attempts) - 1 not in landed and s.attempts:
             landed[len(s.attempts) - 1] = jaws_land_on(
-                handles.plant, plant_ctx, handles.bodies, handles.scene, s.attempts[-1]["grasp"], GripperGeometry(), gone
+                handles.plant,
+                plant_ctx,
+                handles.bodies,
+                handles.scene,
+                s.attempts[-1]["grasp"],
+                GripperGeometry(),
+                gone,
             )
         if scored and s.mode == "approach" and s.attempts:
             on = finger_forces(handles.plant, handles.scene_graph, plant_ctx, fingers, objects)

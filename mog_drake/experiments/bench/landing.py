@@ -22,8 +22,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     """One attempt on the target whose left plate comes down ``overlap`` (m) onto the neighbour."""
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-    from pydrake.systems.framework import EventStatus
-    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.framework import DiagramBuilder, EventStatus
     from pydrake.systems.primitives import ConstantValueSource
 
     from mog_drake.geometry.gripper import OPEN_WIDTH, GripperGeometry
@@ -78,7 +77,10 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     for port, value in fixed.items():
         src = b.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
         b.Connect(src.get_output_port(), controller.GetInputPort(port))
-    for a, c in (("ur5.position_measured", "ur5.position_measured"), ("gripper.state_measured", "gripper.state_measured")):
+    for a, c in (
+        ("ur5.position_measured", "ur5.position_measured"),
+        ("gripper.state_measured", "gripper.state_measured"),
+    ):
         b.Connect(station.GetOutputPort(a), controller.GetInputPort(c))
     for p in ("ur5.position", "gripper.position"):
         b.Connect(controller.GetOutputPort(p), station.GetInputPort(p))

@@ -1,0 +1,43 @@
+"""Sweeps as DataFrames (`experiments.frames`): where the open plates came down."""
+
+import json
+
+import pytest
+
+pytest.importorskip("pandas")
+
+
+def _attempt(picked, jaws_on, force):
+    return {
+        "start": 0.0,
+        "end": 5.0,
+        "group": [0],
+        "picked": picked,
+        "carried": [0] * picked,
+        "held_width": 0.03,
+        "jaws_on": jaws_on,
+        "approach_force": force,
+    }
+
+
+def test_landings_count_the_attempts_whose_plates_came_down_on_an_object(tmp_path):
+    from mog_drake.experiments import frames
+
+    run = {
+        "key": "s0-mog",
+        "scene": 0,
+        "mode": "mog",
+        "attempts": [
+            _attempt(1, {}, 0.0),  # clear, taken
+            _attempt(1, {"3": 4.0}, 60.0),  # landed 4 mm on object 3, taken all the same
+            _attempt(0, {"5": 9.5}, 180.0),  # landed 9.5 mm, pressed past the stop, failed
+            _attempt(1, {"2": 0.4}, 2.0),  # brushed 0.4 mm: not a landing
+        ],
+    }
+    old = {**run, "key": "s1-mog", "scene": 1, "attempts": [{"start": 0.0, "group": [0], "picked": 1}]}
+    (tmp_path / "results.jsonl").write_text(json.dumps(run) + "\n" + json.dumps(old) + "\n")
+    (row,) = frames.landings({"here": tmp_path}).to_dict("records")
+    assert row["attempts"] == 4  # the run from before landings were recorded is left out
+    assert row["landed_pct"] == 50.0 and row["success_if_landed_pct"] == 50.0
+    assert row["success_pct"] == 75.0 and row["success_if_landings_fail_pct"] == 50.0
+    assert row["pressed_to_stop_pct"] == 25.0
