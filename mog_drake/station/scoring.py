@@ -6,9 +6,10 @@ import numpy as np
 from mog_drake.camera import camera_sees
 from mog_drake.geometry.clip import strip_extent
 from mog_drake.geometry.gripper import GripperGeometry, to_grasp_frame
-from mog_drake.geometry.polygon import LENGTH_TOL, transform
+from mog_drake.geometry.polygon import LENGTH_TOL, convex_hull_ccw
 from mog_drake.perception import within_reach
 from mog_drake.scenario import Scenario
+from mog_drake.sim.models import prism_points
 
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
@@ -55,22 +56,21 @@ def jaws_land_on(
     plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()
 ) -> dict[int, float]:
     """Scoring only (ground truth): the objects lying on the table where the open jaws of
-    ``grasp`` come down, their true footprints (``scene``'s shapes at the plant's poses)
-    under a jaw's plate, each with how far the plate lands onto it along the closing axis
-    (m, at most the plate's thickness: the plate wholly on it). The planner placed the jaws
-    clear of the objects as it perceived them; an object here is one a plate lands on."""
+    ``grasp`` come down, their true footprints (each body's prism at the plant's pose, upright
+    or knocked over, projected on the table) under a jaw's plate, each with how far the plate
+    lands onto it along the closing axis (m, at most the plate's thickness: the plate wholly
+    on it). The planner placed the jaws clear of the objects as it perceived them; an object
+    here is one a plate lands on."""
     hw, t, hy = gripper.w_g / 2, gripper.plate_thickness, gripper.plate_width / 2
     out = {}
     for i, b in bodies.items():
         if i in skip:
             continue
         X = plant.EvalBodyPoseInWorld(plant_context, b)
-        p, R = X.translation(), X.rotation().matrix()
-        if not -0.02 < p[2] < 0.08:  # not on the table: in the air, in the bin or on the floor
+        if not -0.02 < X.translation()[2] < 0.08:  # not on the table: in the air, in the bin or on the floor
             continue
-        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
-        footprint = transform(scene.library[scene.objects[i].shape].vertices, float(p[0]), float(p[1]), yaw)
-        P = to_grasp_frame(footprint[None], np.asarray(grasp, float))
+        corners = X.multiply(prism_points(scene.library[scene.objects[i].shape]))[:2].T
+        P = to_grasp_frame(convex_hull_ccw(corners)[None], np.asarray(grasp, float))
         lo, hi, has = strip_extent(P, -hy, hy)
         if not has[0]:
             continue
