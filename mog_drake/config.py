@@ -64,9 +64,18 @@ class ControllerConfig:
     # table is checked from there and the arm goes straight on to the next grasp or push,
     # 1.4 s of its 6.7 s cycle saved.
     return_home: bool = False
+    # N: the guarded descent. Once the arm is above the grasp, the wrist's force (the station's
+    # ur5.wrist_force: the simulated contact forces on the gripper, or the UR5's
+    # getActualTCPForce) is measured from its value there; past this the arm stops and backs
+    # out, the attempt failed (docs/physics.md: a plate that comes down on an object). 0: off.
+    # Above the 25 N to which a CB3 detects its TCP force (its manual, the safety functions),
+    # so the estimate's own error does not trip it; far under the force limit of its safety
+    # configuration, which would protective-stop the arm.
+    guard_force: float = 40.0
 
     def check(self) -> None:
         in_range(self.period, "controller.period (s)", 0, 1.0)
+        in_range(self.guard_force, "controller.guard_force (N)", 0, 1000, lo_open=False)
         for key in ("close_margin", "open_time", "settle_time"):
             in_range(getattr(self, key), f"controller.{key} (s)", 0, 60, lo_open=False)
 

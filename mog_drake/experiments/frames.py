@@ -12,7 +12,14 @@ from __future__ import annotations
 from pathlib import Path
 
 # Outcomes of an attempt, as `attempts` names them.
-OUTCOMES = ("taken", "part taken", "dropped on the way", "closed on nothing", "lifted nothing")
+OUTCOMES = (
+    "taken",
+    "part taken",
+    "dropped on the way",
+    "stopped on the way down",
+    "closed on nothing",
+    "lifted nothing",
+)
 # A jaw opening after the close below this (m): the jaws met with nothing between them.
 EMPTY_JAWS = 0.002
 
@@ -46,7 +53,8 @@ def outcome(a: dict) -> str:
     """An attempt's outcome (OUTCOMES): everything it meant to take in the bin, part of it,
     lifted and lost on the way, the jaws closed with nothing between them (the objects were
     not where perception put them, or were pushed away), or nothing lifted though the jaws
-    held something (it slipped out at the lift)."""
+    held something (it slipped out at the lift); or the guarded descent stopped on an object
+    before the jaws closed."""
     picked, expected = a.get("picked") or 0, len(a.get("expected") or a.get("group") or ())
     carried = len(a.get("carried") or ())
     if picked >= max(expected, 1):
@@ -55,6 +63,8 @@ def outcome(a: dict) -> str:
         return "part taken"
     if carried > 0:
         return "dropped on the way"
+    if a.get("stopped"):
+        return "stopped on the way down"
     if (a.get("held_width") or 0.0) < EMPTY_JAWS:
         return "closed on nothing"
     return "lifted nothing"

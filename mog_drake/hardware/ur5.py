@@ -18,7 +18,9 @@ from mog_drake.hardware.safety import CommandLog, FaultLatch, MotionBudget, Safe
 
 
 class UR5Driver(LeafSystem):
-    """ur5.position -> servoJ (checked); getActualQ -> ur5.position_measured.
+    """ur5.position -> servoJ (checked); getActualQ -> ur5.position_measured; the force part of
+    getActualTCPForce (N, base frame; the controller's estimate, less the payload's weight) ->
+    ur5.wrist_force, which the guarded descent measures from its value above each grasp.
 
     The driver is the last line of defence and assumes nothing about what is upstream:
 
@@ -64,11 +66,13 @@ class UR5Driver(LeafSystem):
         self._budget = MotionBudget(safety.limits.max_joint_speed, safety.limits.burst_window)
         self._cmd = self.DeclareVectorInputPort("ur5.position", 6)
         self._q = self.DeclareDiscreteState(np.asarray(q_init, float))
+        self._f = self.DeclareDiscreteState(np.zeros(3))
         # Device bookkeeping (the last target sent, the receive timestamp) lives with the
         # device, not in the Context: it describes the robot, which no Context can rewind.
         self._last = {"q": None, "t": None, "logged": None, "stopped": False}
         self._stamp = {"ts": None, "since": None}
         self.DeclareStateOutputPort("ur5.position_measured", self._q)
+        self.DeclareStateOutputPort("ur5.wrist_force", self._f)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._poll)
         self.DeclarePeriodicPublishEvent(period, 0.0, self._send)
 
@@ -120,11 +124,15 @@ class UR5Driver(LeafSystem):
             return self._fail(reason)
         try:
             q = np.asarray(self._receive.getActualQ(), float)
+            f = np.asarray(self._receive.getActualTCPForce(), float)
         except Exception as e:
             return self._fail(f"connection lost ({type(e).__name__}: {e})")
         if q.shape != (6,) or not np.all(np.isfinite(q)):
             return self._fail(f"getActualQ returned {q.tolist()}, not six finite numbers")
+        if f.shape != (6,) or not np.all(np.isfinite(f)):
+            return self._fail(f"getActualTCPForce returned {f.tolist()}, not six finite numbers")
         discrete_state.get_mutable_vector(self._q).SetFromVector(q)
+        discrete_state.get_mutable_vector(self._f).SetFromVector(f[:3])
         return EventStatus.Succeeded()
 
     def _send(self, context):

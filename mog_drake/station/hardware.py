@@ -164,6 +164,7 @@ def _build(scenario, hw, handles, control, receive, gripper, *, safety, faults, 
     builder.ExportInput(ur5.GetInputPort("ur5.position"), "ur5.position")
     builder.ExportInput(grip.GetInputPort("gripper.position"), "gripper.position")
     builder.ExportOutput(ur5.GetOutputPort("ur5.position_measured"), "ur5.position_measured")
+    builder.ExportOutput(ur5.GetOutputPort("ur5.wrist_force"), "ur5.wrist_force")
     builder.ExportOutput(grip.GetOutputPort("gripper.state_measured"), "gripper.state_measured")
     builder.ExportOutput(camera.GetOutputPort("camera.rgb_image"), "camera.rgb_image")
     builder.ExportOutput(camera.GetOutputPort("camera.depth_image"), "camera.depth_image")

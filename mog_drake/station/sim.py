@@ -118,6 +118,40 @@ class _GripperState(LeafSystem):
         output.SetFromVector([x[qr] - x[ql] - self._t, x[vr] - x[vl]])
 
 
+class _WristForce(LeafSystem):
+    """The plant's contact results -> the force the world puts on the gripper (palm and
+    fingers; N, world frame): what a force sensor at the wrist reads, less the gripper's own
+    weight (the UR5's getActualTCPForce, which removes the payload's)."""
+
+    def __init__(self, plant, scene_graph, gripper_bodies):
+        super().__init__()
+        self._plant, self._sg = plant, scene_graph
+        self._bodies = {b.index() for b in gripper_bodies}
+        self.DeclareAbstractInputPort("contact_results", plant.get_contact_results_output_port().Allocate())
+        self.DeclareVectorOutputPort("ur5.wrist_force", 3, self._calc)
+
+    def _calc(self, context, output) -> None:
+        plant, mine = self._plant, self._bodies
+        results = self.get_input_port(0).Eval(context)
+        inspector = self._sg.model_inspector()
+        f = np.zeros(3)
+        for k in range(results.num_hydroelastic_contacts()):
+            info = results.hydroelastic_contact_info(k)
+            surface = info.contact_surface()
+            a, b = (
+                plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index()
+                for g in (surface.id_M(), surface.id_N())
+            )
+            if (a in mine) != (b in mine):  # F_Ac_W is the force on M's body
+                f += info.F_Ac_W().translational() * (1.0 if a in mine else -1.0)
+        for k in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(k)
+            a, b = info.bodyA_index(), info.bodyB_index()
+            if (a in mine) != (b in mine):  # contact_force() is the force on body B
+                f += info.contact_force() * (1.0 if b in mine else -1.0)
+        output.SetFromVector(f)
+
+
 class _DepthArtefacts(LeafSystem):
     """(colour image, depth image) -> the depth image as a stereo depth camera delivers it:
     `realism.depth_artefacts` with the world's noise (times the D435's RMS at each pixel's
@@ -346,6 +380,10 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None, board=None):
     gs = builder.AddSystem(_GripperState(plant, jl, jr, gripper.plate_thickness))
     builder.Connect(plant.get_state_output_port(), gs.get_input_port())
     builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
+    grip = [plant.GetBodyByName(n, robot) for n in ("palm", "left_finger", "right_finger")]
+    wrist = builder.AddSystem(_WristForce(plant, scene_graph, grip))
+    builder.Connect(plant.get_contact_results_output_port(), wrist.get_input_port())
+    builder.ExportOutput(wrist.get_output_port(), "ur5.wrist_force")
 
     _add_camera(builder, scene_graph, scenario.camera, world)
     builder.ExportOutput(plant.get_body_poses_output_port(), "sim.body_poses")

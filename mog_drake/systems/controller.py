@@ -45,6 +45,8 @@ class ControllerState(Immutable):
     # "now"}), and the robot time they took (s).
     pushes: list = field(default_factory=list)
     push_time: float = 0.0
+    # The wrist's force (N, world frame) as the descent began: what the guard measures from.
+    force_zero: np.ndarray | None = None
 
 
 class ControllerSystem(LeafSystem):
@@ -69,6 +71,7 @@ class ControllerSystem(LeafSystem):
 
     MOTIONS = {
         "approach": "close",
+        "retreat": "observe",  # a descent stopped on an object (guard_force): back up and out
         "lift": "to_bin",
         "to_bin": "open",
         "home": "observe",
@@ -102,12 +105,14 @@ class ControllerSystem(LeafSystem):
         self._close_time, self._open_time, self._settle = close_time, cfg.open_time, cfg.settle_time
         self._max_unreachable = cfg.max_unreachable
         self._return_home = cfg.return_home
+        self._guard = cfg.guard_force
         period = cfg.period
         self._limit = time_limit
         self._arm_view = arm_view
         self._push_speed = push_speed
         self._q = self.DeclareVectorInputPort("ur5.position_measured", 6)
         self._g = self.DeclareVectorInputPort("gripper.state_measured", 2)
+        self._f = self.DeclareVectorInputPort("ur5.wrist_force", 3)
         self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(Decision()))
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._checked = self.DeclareAbstractInputPort("checked", AbstractValue.Make(Checked()))
@@ -172,6 +177,13 @@ class ControllerSystem(LeafSystem):
                     new.mode, new.finished = "done", dec.status
                 else:
                     self._start_grasp(new, s, d, t)
+        elif (
+            s.mode == "approach"
+            and self._guard > 0
+            and dt >= s.plan["descend_at"]
+            and self._stopped(context, s, new, t)
+        ):
+            pass  # the descent met an object: backing out (`_stopped`)
         elif s.mode in self.MOTIONS:
             if dt >= s.plan[s.mode].end_time() + 0.05:
                 self._motion_done(new, s, t)
@@ -189,6 +201,26 @@ class ControllerSystem(LeafSystem):
         if new.mode == "done" and s.mode != "done":
             new.t_end = t
         state.get_mutable_abstract_state(self._state).set_value(new)
+
+    def _stopped(self, context, s: ControllerState, new: ControllerState, t: float) -> bool:
+        """The guarded descent: the wrist's force is measured from its value as the descent
+        began; past ``guard_force`` the plate has come down on something the planner did not
+        see there (an object where perception put none): the arm stops and backs out the way it
+        came, the jaws still open, and the attempt ends there (``stopped``). A real arm pressed
+        on would otherwise reach its own force limit and protective-stop."""
+        f = np.asarray(self._f.Eval(context), float)
+        if s.force_zero is None:
+            new.force_zero = f
+            return False
+        push = float(np.linalg.norm(f - s.force_zero))
+        if push <= self._guard:
+            return False
+        dt = t - s.t_mode
+        q_now = s.plan["approach"].value(min(dt, s.plan["approach"].end_time())).ravel()
+        new.plan = {**s.plan, "retreat": self._motion.retreat(q_now, s.plan["above"], self._home)}
+        new.mode, new.t_mode = "retreat", t
+        new.attempts[-1] = {**new.attempts[-1], "stopped": {"force": round(push, 1), "after": round(dt, 3)}}
+        return True
 
     def _count_time(self, context, s: ControllerState, new: ControllerState, t: float) -> None:
         """The interval since the last update, by what the arm did in it."""
@@ -215,7 +247,7 @@ class ControllerSystem(LeafSystem):
         except MogError as e:
             self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e=e)
             return
-        new.mode, new.t_mode, new.unreachable = "approach", t, 0
+        new.mode, new.t_mode, new.unreachable, new.force_zero = "approach", t, 0, None
         new.attempts.append(
             {
                 "start": t,
@@ -251,7 +283,7 @@ class ControllerSystem(LeafSystem):
             new.pushes[-1] = {**new.pushes[-1], "end": t}
             new.plan = None
             new.counter = new.requested = new.requested if new.requested > s.counter else s.counter + 1
-        if s.mode == "home":
+        if s.mode in ("home", "retreat"):
             self._end_attempt(new, s, t)
 
     def _from_bin(self, context, new: ControllerState) -> bool:
@@ -293,7 +325,7 @@ class ControllerSystem(LeafSystem):
             new.plan = {"push_home": self._motion.timed([s.q_hold, self._home])}
             new.mode, new.t_mode = "push_home", t
             return
-        new.plan, new.mode, new.t_mode = plan, "approach", t
+        new.plan, new.mode, new.t_mode, new.force_zero = plan, "approach", t, None
         new.attempts.append(
             {
                 "start": t,

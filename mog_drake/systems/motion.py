@@ -37,6 +37,15 @@ def wrist_in_band(q, center: float = 0.0) -> np.ndarray:
     return q
 
 
+def passing_time(traj, q, step: float = 0.005) -> float:
+    """The time (s) at which ``traj`` passes nearest to joint configuration ``q`` (sampled
+    every ``step`` s)."""
+    t = np.arange(0.0, traj.end_time() + step, step)
+    t = np.minimum(t, traj.end_time())
+    d = [np.abs(traj.value(ti).ravel() - q).max() for ti in t]
+    return float(t[int(np.argmin(d))])
+
+
 class ArmMotion:
     """IK and time parameterisation on an arm-only copy of the station's UR5."""
 
@@ -210,9 +219,13 @@ class ArmMotion:
         z_bin = bin_height + cfg.bin_clearance + self.finger_height
         seeds = (up[-1], q_start if self.q_home is None else self.q_home)
         q_bin = self.bin_ik([bin_xy[0], bin_xy[1], z_bin], yaw, seeds, turn_from=up[-1])
+        approach = self.timed([q_start, q_above, *down[1:]])
         return self._above_table(
             {
-                "approach": self.timed([q_start, q_above, *down[1:]]),
+                "approach": approach,
+                # Where the vertical descent begins: the arm above the grasp, and when.
+                "above": q_above,
+                "descend_at": passing_time(approach, q_above),
                 "lift": self.timed(up, cfg.carry_scale),
                 "to_bin": self.timed([up[-1], q_bin], cfg.carry_scale),
                 "home": self.timed([q_bin, q_start if q_home is None else np.asarray(q_home, float)]),
@@ -235,6 +248,11 @@ class ArmMotion:
                         f"table (at least {LINK_FLOOR} m)"
                     )
         return plan
+
+    def retreat(self, q_now, q_above, q_home) -> PathParameterizedTrajectory:
+        """Back up the vertical line from ``q_now`` (on a descent) to ``q_above``, then to
+        ``q_home``: the way out of a descent stopped on an object (ControllerConfig.guard_force)."""
+        return self.timed([q_now, q_above, q_home])
 
     PUSH_POINTS = 9  # IK points along a push's line
 

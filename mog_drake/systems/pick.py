@@ -153,6 +153,7 @@ def MakePickDiagram(
     builder.Connect(
         station.GetOutputPort("gripper.state_measured"), controller.GetInputPort("gripper.state_measured")
     )
+    builder.Connect(station.GetOutputPort("ur5.wrist_force"), controller.GetInputPort("ur5.wrist_force"))
     builder.Connect(controller.GetOutputPort("ur5.position"), station.GetInputPort("ur5.position"))
     builder.Connect(controller.GetOutputPort("gripper.position"), station.GetInputPort("gripper.position"))
     diagram = builder.Build()

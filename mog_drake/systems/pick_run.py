@@ -122,6 +122,8 @@ def attempt_line(k: int, a: dict) -> str:
     line = f"attempt {k:3d}  grasp of {len(a['group'])}: {what}" + (
         " (after the push)" if a.get("after_push") else ""
     )
+    if a.get("stopped"):
+        line += f"  -> stopped on the way down ({a['stopped']['force']:.0f} N: a plate on an object)"
     if a.get("carried") is not None:
         line += f"  -> lifted {len(a['carried'])}"
     if a.get("picked") is not None:

@@ -41,3 +41,11 @@ def test_landings_count_the_attempts_whose_plates_came_down_on_an_object(tmp_pat
     assert row["landed_pct"] == 50.0 and row["success_if_landed_pct"] == 50.0
     assert row["success_pct"] == 75.0 and row["success_if_landings_fail_pct"] == 50.0
     assert row["pressed_to_stop_pct"] == 25.0
+
+
+def test_an_attempt_stopped_on_the_way_down_is_its_own_outcome():
+    from mog_drake.experiments import frames
+
+    stopped = {"group": [0], "picked": 0, "carried": [], "held_width": None, "stopped": {"force": 52.0}}
+    assert frames.outcome(stopped) == "stopped on the way down"
+    assert frames.outcome({**stopped, "stopped": None}) == "closed on nothing"

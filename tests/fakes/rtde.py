@@ -12,6 +12,8 @@ rtde_receive_interface.cpp):
 * After the link drops, ``isConnected()`` turns False on both interfaces, while every getter of
   the receive interface (``getActualQ``, ``getTimestamp``, ``getSafetyMode``, ...) goes on
   returning the last cached values without error: the receive thread has stopped updating them.
+* ``getActualTCPForce()``: six numbers, the force (N) and torque (N m) at the TCP in the base
+  frame, as the controller estimates them less the configured payload; cached like the rest.
 * ``getTimestamp()`` is the controller's time since it started (s), advancing with each RTDE
   packet (500 Hz on e-Series, 125 Hz on CB3): a frozen timestamp is the only sign of a stale
   cache while ``isConnected()`` still says True.
@@ -40,6 +42,7 @@ class FakeUR:
 
     def __init__(self, q0):
         self.q = np.asarray(q0, float).copy()
+        self.tcp_force = np.zeros(6)  # what the controller estimates at the TCP (N, N m)
         self.t0 = time.monotonic()
         self.connected = True  # the network link
         self.fresh = True  # the receive thread updates the cache
@@ -56,6 +59,7 @@ class FakeUR:
         ts = round((time.monotonic() - self.t0) / RTDE_PERIOD) * RTDE_PERIOD
         return {
             "q": list(self.q),
+            "force": list(self.tcp_force),
             "ts": ts,
             "safety": self.safety_mode,
             "mode": self.robot_mode,
@@ -133,6 +137,9 @@ class FakeRTDEReceive:
 
     def getActualQ(self) -> list[float]:
         return list(self.ur.cache()["q"])
+
+    def getActualTCPForce(self) -> list[float]:
+        return list(self.ur.cache()["force"])
 
     def getTimestamp(self) -> float:
         return self.ur.cache()["ts"]

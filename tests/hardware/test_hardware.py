@@ -66,6 +66,26 @@ def test_ur5_driver_streams_checked_commands_and_reads_joints():
     np.testing.assert_allclose(d.GetOutputPort("ur5.position_measured").Eval(ctx), q)
 
 
+def test_ur5_driver_reads_the_tcp_force_and_faults_on_a_malformed_one():
+    """ur5.wrist_force is getActualTCPForce's force part (its torques dropped); a reply that is
+    not six finite numbers latches a fault, as a malformed getActualQ does."""
+    sc = Scenario()
+    ur, control, receive = fake_ur5(sc.robot.home)
+    ur.tcp_force = np.array([1.5, -2.0, 41.0, 0.1, 0.2, 0.3])
+    d, ctx = _driver(sc, control, receive)
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    sim = Simulator(d, ctx)
+    sim.AdvanceTo(0.03)
+    np.testing.assert_allclose(d.GetOutputPort("ur5.wrist_force").Eval(ctx), [1.5, -2.0, 41.0])
+    ur.tcp_force = np.array([0.0, 0.0, np.nan, 0.0, 0.0, 0.0])
+    faults = FaultLatch()
+    d, ctx = _driver(sc, control, receive, faults=faults)
+    d.GetInputPort("ur5.position").FixValue(ctx, np.array(sc.robot.home))
+    with pytest.raises(RuntimeError):
+        Simulator(d, ctx).AdvanceTo(0.03)
+    assert "getActualTCPForce returned" in faults.reason
+
+
 @pytest.mark.parametrize(
     "delta,msg",
     [

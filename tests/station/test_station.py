@@ -283,7 +283,7 @@ def test_a_plate_coming_down_on_a_neighbour_shoves_it_aside_and_the_grasp_goes_o
     """What the station does where a rigid world would not (`bench landing`, docs/physics.md):
     the open plate lands 6 mm onto a cube beside the target; the cube is pushed away (or tipped
     over) with the fingers pressing on it, and the target still reaches the bin. 3 mm clear of
-    it, the plate does not touch it."""
+    it, the plate does not touch it. A guarded descent stops on it instead."""
     from mog_drake.experiments.bench.landing import landing_attempt
 
     r = landing_attempt("small_yellow_cube", 0.006)
@@ -292,3 +292,8 @@ def test_a_plate_coming_down_on_a_neighbour_shoves_it_aside_and_the_grasp_goes_o
     assert r["peak_force_N"] > 20.0  # the fingers pressed on it (`finger_forces`)
     clear = landing_attempt("small_yellow_cube", -0.003)  # 3 mm clear of it: untouched
     assert clear["target_in_bin"] and clear["peak_force_N"] == 0.0 and clear["neighbour_moved_mm"] < 0.5
+    # The descent guarded (ControllerConfig.guard_force): the arm stops on the cube and backs
+    # out; the attempt fails, and the cube stays nearly where it was.
+    guarded = landing_attempt("small_yellow_cube", 0.006, guard=40.0)
+    assert guarded["stopped_at_N"] > 40.0 and not guarded["target_in_bin"]
+    assert guarded["neighbour_moved_mm"] < r["neighbour_moved_mm"] and guarded["neighbour_tilt_deg"] < 30

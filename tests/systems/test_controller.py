@@ -4,6 +4,7 @@ drop pose above the bin."""
 import numpy as np
 import pytest
 
+from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.scenario import Scenario
 
 
@@ -24,6 +25,7 @@ def _controller_with_fixed_inputs(with_check=False):
     ctx = c.CreateDefaultContext()
     c.GetInputPort("ur5.position_measured").FixValue(ctx, np.array(sc.robot.home))
     c.GetInputPort("gripper.state_measured").FixValue(ctx, [0.03, 0.0])
+    c.GetInputPort("ur5.wrist_force").FixValue(ctx, np.zeros(3))
     decision = c.GetInputPort("decision").FixValue(ctx, AbstractValue.Make(Decision()))
     c.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(counter=10**6)))
     checked = c.GetInputPort("checked").FixValue(ctx, AbstractValue.Make(Checked(counter=-1)))
@@ -96,6 +98,45 @@ def test_a_changed_table_drops_the_decision_and_takes_a_new_image():
     s = c.state(ctx)
     assert s.mode == "wait" and s.counter == 3 and s.retakes == 1 and len(s.attempts) == 1
     assert c.GetOutputPort("request").Eval(ctx)[0] == 3
+
+
+def test_a_descent_pressed_past_the_guard_force_stops_and_backs_out():
+    """The guarded descent: above the grasp the wrist's force is taken as zero; 50 N more on
+    the way down (a plate on an object) stops the arm there, and it backs out with the jaws
+    open, the attempt ended as stopped; a new image is asked for. Below the guard nothing
+    happens."""
+    from mog_drake.planning.decision import PickDecision
+    from mog_drake.systems.planner import Decision
+
+    c, ctx, decision, sim = _controller_with_fixed_inputs()
+    force = c.GetInputPort("ur5.wrist_force").FixValue(ctx, np.array([3.0, -2.0, 10.0]))  # a bias
+    sim.AdvanceTo(0.5)
+    decision.GetMutableData().set_value(
+        Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0,)), 5)
+    )
+    sim.AdvanceTo(0.6)
+    s = c.state(ctx)
+    assert s.mode == "approach"
+    down = s.t_mode + s.plan["descend_at"]
+    sim.AdvanceTo(down + 0.05)  # descending: the bias taken as zero
+    np.testing.assert_allclose(c.state(ctx).force_zero, [3.0, -2.0, 10.0])
+    force.GetMutableData().set_value(np.array([3.0, -2.0, 10.0 + 30.0]))  # under the 40 N guard
+    sim.AdvanceTo(down + 0.1)
+    assert c.state(ctx).mode == "approach"
+    force.GetMutableData().set_value(np.array([3.0, -2.0, 10.0 + 50.0]))
+    sim.AdvanceTo(down + 0.12)
+    s = c.state(ctx)
+    assert s.mode == "retreat" and s.gripper == OPEN_WIDTH  # the jaws still open
+    stop = s.attempts[0]["stopped"]
+    assert stop["force"] == pytest.approx(50.0) and stop["after"] >= s.plan["descend_at"]
+    # It backs up the way it came (the first point of the retreat is where it stopped).
+    q_stop = s.plan["approach"].value(stop["after"]).ravel()
+    np.testing.assert_allclose(s.plan["retreat"].value(0.0).ravel(), q_stop, atol=1e-9)
+    while c.state(ctx).mode == "retreat":
+        sim.AdvanceTo(ctx.get_time() + 0.05)
+    s = c.state(ctx)
+    assert s.mode == "wait" and "end" in s.attempts[0] and "held_width" not in s.attempts[0]
+    assert c.GetOutputPort("request").Eval(ctx)[0] == 2
 
 
 def test_unreachable_grasps_are_skipped_and_three_in_a_row_end_the_run():

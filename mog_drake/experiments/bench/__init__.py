@@ -131,7 +131,7 @@ def run(
     elif what == "landing":
         from mog_drake.experiments.bench.landing import bench_landing, landing_text
 
-        bar = Progress(15, what, enabled=progress)
+        bar = Progress(30, what, enabled=progress)
         rows = bench_landing(progress=bar)
         bar.close()
         return {what: rows}, format_table(rows) + "\n" + landing_text(rows)

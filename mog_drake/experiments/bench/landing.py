@@ -18,8 +18,11 @@ NEIGHBOURS = ("thin_bar", "small_yellow_cube", "blue_quad")
 OVERLAPS_MM = (-3.0, 1.0, 3.0, 6.0, 10.0)
 
 
-def landing_attempt(neighbour: str, overlap: float) -> dict:
-    """One attempt on the target whose left plate comes down ``overlap`` (m) onto the neighbour."""
+def landing_attempt(neighbour: str, overlap: float, guard: float = 0.0) -> dict:
+    """One attempt on the target whose left plate comes down ``overlap`` (m) onto the
+    neighbour, the descent guarded at ``guard`` N (ControllerConfig.guard_force; 0: off)."""
+    from dataclasses import replace
+
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
     from pydrake.systems.framework import DiagramBuilder, EventStatus
@@ -64,7 +67,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
         open_width=OPEN_WIDTH,
         close_time=OPEN_WIDTH / 2 / gp.close_speed + sc.controller.close_margin,
         time_limit=sc.time_limit,
-        config=sc.controller,
+        config=replace(sc.controller, guard_force=guard),
     )
     b = DiagramBuilder()
     b.AddSystem(station)
@@ -80,6 +83,7 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
     for a, c in (
         ("ur5.position_measured", "ur5.position_measured"),
         ("gripper.state_measured", "gripper.state_measured"),
+        ("ur5.wrist_force", "ur5.wrist_force"),
     ):
         b.Connect(station.GetOutputPort(a), controller.GetInputPort(c))
     for p in ("ur5.position", "gripper.position"):
@@ -105,33 +109,47 @@ def landing_attempt(neighbour: str, overlap: float) -> dict:
         a = controller.state(cctx).attempts
         if a and "end" in a[0] and ctx.get_time() > a[0]["end"] + 1.0:
             break
+    stopped = (controller.state(cctx).attempts or [{}])[0].get("stopped")
     X = h.plant.EvalBodyPoseInWorld(pc, h.bodies[1])
     tilt = float(np.degrees(np.arccos(np.clip(X.rotation().matrix()[2, 2], -1.0, 1.0))))
     return {
         "neighbour": neighbour,
         "overlap_mm": round(1e3 * overlap, 1),
+        "guard_N": guard,
         "neighbour_moved_mm": round(1e3 * float(np.linalg.norm(X.translation()[:2] - start[:2])), 1),
         "neighbour_tilt_deg": round(tilt),
         "peak_force_N": round(peak[0], 1),
+        "stopped_at_N": stopped["force"] if stopped else None,
         "target_in_bin": 0 in objects_in_bin(h.plant, pc, h.bodies, sc),
     }
 
 
 def bench_landing(progress=None) -> list[dict]:
+    """Every neighbour and overlap, the descent unguarded and guarded (the default force)."""
+    from mog_drake.config import ControllerConfig
+
     rows = []
-    for n in NEIGHBOURS:
-        for o in OVERLAPS_MM:
-            rows.append(landing_attempt(n, o * 1e-3))
-            if progress is not None:
-                progress.step()
+    for guard in (0.0, ControllerConfig().guard_force):
+        for n in NEIGHBOURS:
+            for o in OVERLAPS_MM:
+                rows.append(landing_attempt(n, o * 1e-3, guard))
+                if progress is not None:
+                    progress.step()
     return rows
 
 
 def landing_text(rows: list[dict]) -> str:
-    landed = [r for r in rows if r["overlap_mm"] > 0]
-    moved = [r for r in landed if r["neighbour_moved_mm"] > 5 or r["neighbour_tilt_deg"] > 30]
-    return (
-        f"a plate came down on the neighbour in {len(landed)} attempts: the target reached the bin in "
-        f"{sum(r['target_in_bin'] for r in landed)}, the neighbour was pushed aside or tipped over in "
-        f"{len(moved)} (a rigid object under a real plate would stop the arm or hold the plate up)"
-    )
+    lines = []
+    for guard in dict.fromkeys(r["guard_N"] for r in rows):
+        landed = [r for r in rows if r["overlap_mm"] > 0 and r["guard_N"] == guard]
+        clear = [r for r in rows if r["overlap_mm"] <= 0 and r["guard_N"] == guard]
+        moved = [r for r in landed if r["neighbour_moved_mm"] > 5 or r["neighbour_tilt_deg"] > 30]
+        lines.append(
+            (f"guarded at {guard:g} N" if guard else "unguarded")
+            + f": a plate came down on the neighbour in {len(landed)} attempts: the target reached the bin in "
+            f"{sum(r['target_in_bin'] for r in landed)}, the arm stopped in "
+            f"{sum(r['stopped_at_N'] is not None for r in landed)}, the neighbour was pushed over 5 mm or "
+            f"tipped over in {len(moved)}; clear of it, {sum(r['target_in_bin'] for r in clear)} of "
+            f"{len(clear)} taken, {sum(r['stopped_at_N'] is not None for r in clear)} stopped"
+        )
+    return "\n".join(lines)
