@@ -53,7 +53,7 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
 
 
 def jaws_land_on(
-    plant, plant_context, bodies, scene, grasp, gripper: GripperGeometry, skip=()
+    plant, plant_context, bodies, scene, grasp, *, gripper: GripperGeometry, skip=()
 ) -> dict[int, float]:
     """Scoring only (ground truth): the objects lying on the table where the open jaws of
     ``grasp`` come down, their true footprints (each body's prism at the plant's pose, upright

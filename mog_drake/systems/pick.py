@@ -277,8 +277,8 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 handles.bodies,
                 handles.scene,
                 s.attempts[-1]["grasp"],
-                GripperGeometry(),
-                gone,
+                gripper=GripperGeometry(),
+                skip=gone,
             )
         if scored and s.mode == "approach" and s.attempts:
             on = finger_forces(handles.plant, handles.scene_graph, plant_ctx, fingers, objects)

@@ -152,18 +152,20 @@ def test_the_objects_under_an_attempts_open_jaws_are_found_at_their_true_poses()
 
     for i in range(4):  # every object far from the grasp
         h.plant.SetFreeBodyPose(pc, h.bodies[i], RigidTransform([0.2, -0.25 + 0.1 * i, 0.02]))
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {}
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g) == {}
     right = g.w_g / 2 + g.plate_thickness / 2  # the right plate's centre
     put(2, right)  # object 2's centre under the right plate: the plate lands wholly on it
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {2: pytest.approx(g.plate_thickness)}
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g, skip=(2,)) == {}
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g) == {
+        2: pytest.approx(g.plate_thickness)
+    }
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g, skip=(2,)) == {}
     # Only its last 3 mm under the plate.
     reach = h.scene.library[h.scene.objects[2].shape].vertices[:, 0].max()
     put(2, g.w_g / 2 + 0.003 - reach)
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {2: pytest.approx(0.003)}
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g) == {2: pytest.approx(0.003)}
     put(2, 0.0)  # between the plates: no landing; nor in the air (carried)
     put(1, right, z=0.3)
-    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, g) == {}
+    assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g) == {}
 
 
 def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
