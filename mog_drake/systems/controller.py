@@ -50,7 +50,8 @@ class ControllerState(Immutable):
 
 
 class ControllerSystem(LeafSystem):
-    """A state machine per attempt: ask for a grasp, move above it, descend, close with the
+    """A state machine per attempt: ask for a grasp, move above it, descend (guarded: past
+    ``config.guard_force`` on the wrist the arm backs out, the attempt stopped), close with the
     force limit, lift, move above the bin, open, return to the observe pose, ask again.
     ``close_time``: how long the jaws close (see ControllerConfig.close_margin).
 
