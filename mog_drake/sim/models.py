@@ -215,6 +215,26 @@ def add_bin(
         plant.RegisterVisualGeometry(body, X, box, f"{name}_{part}", color)
 
 
+def contact_forces(plant, scene_graph, results) -> list[tuple]:
+    """Every contact of ``results`` (the plant's ContactResults) as (body A's index, body B's
+    index, the force on A, N, world frame): hydroelastic contacts' F_Ac_W is on the body of
+    geometry M, a point pair's contact_force() on body B."""
+    inspector = scene_graph.model_inspector()
+    out = []
+    for k in range(results.num_hydroelastic_contacts()):
+        info = results.hydroelastic_contact_info(k)
+        surface = info.contact_surface()
+        a, b = (
+            plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index()
+            for g in (surface.id_M(), surface.id_N())
+        )
+        out.append((a, b, info.F_Ac_W().translational()))
+    for k in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(k)
+        out.append((info.bodyA_index(), info.bodyB_index(), -info.contact_force()))
+    return out
+
+
 def prism_points(shape) -> np.ndarray:
     """3 x 2N corners of a library shape extruded from z = 0 to its height (body frame)."""
     v = shape.vertices

@@ -9,7 +9,7 @@ from mog_drake.geometry.gripper import GripperGeometry, to_grasp_frame
 from mog_drake.geometry.polygon import LENGTH_TOL, convex_hull_ccw
 from mog_drake.perception import within_reach
 from mog_drake.scenario import Scenario
-from mog_drake.sim.models import prism_points
+from mog_drake.sim.models import contact_forces, prism_points
 
 
 def objects_in_bin(plant, plant_context, bodies, scenario: Scenario, retired=()) -> list[int]:
@@ -81,23 +81,12 @@ def jaws_land_on(
 
 
 def finger_forces(plant, scene_graph, plant_context, fingers: set, bodies: set) -> dict:
-    """Scoring only (ground truth): the magnitude of the contact force between the fingers
-    (body indices) and each of ``bodies`` (body indices) touching them now, in N."""
+    """Scoring only (ground truth): the magnitude of the contact force the fingers (body
+    indices) put on each of ``bodies`` (body indices) touching them now, in N."""
     results = plant.get_contact_results_output_port().Eval(plant_context)
-    inspector = scene_graph.model_inspector()
     total: dict = {}
-    pairs = []
-    for k in range(results.num_hydroelastic_contacts()):
-        info = results.hydroelastic_contact_info(k)
-        surface = info.contact_surface()
-        ids = (surface.id_M(), surface.id_N())
-        pair = {plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index() for g in ids}
-        pairs.append((pair, info.F_Ac_W().translational()))
-    for k in range(results.num_point_pair_contacts()):
-        info = results.point_pair_contact_info(k)
-        pairs.append(({info.bodyA_index(), info.bodyB_index()}, info.contact_force()))
-    for pair, f in pairs:
-        if pair & fingers:
-            for b in pair & bodies:
-                total[b] = total.get(b, np.zeros(3)) + f
+    for a, b, f_a in contact_forces(plant, scene_graph, results):
+        for body, other, f in ((a, b, f_a), (b, a, -f_a)):
+            if body in bodies and other in fingers:
+                total[body] = total.get(body, np.zeros(3)) + f
     return {b: float(np.linalg.norm(f)) for b, f in total.items()}

@@ -39,6 +39,7 @@ from mog_drake.sim.models import (
     add_gripper_fingers,
     add_prism,
     add_table,
+    contact_forces,
     filter_gripper_self_collisions,
     pose_to_transform,
 )
@@ -118,6 +119,10 @@ class _GripperState(LeafSystem):
         output.SetFromVector([x[qr] - x[ql] - self._t, x[vr] - x[vl]])
 
 
+# The gripper's bodies: the palm, then the fingers.
+GRIPPER_BODIES = ("palm", "left_finger", "right_finger")
+
+
 class _WristForce(LeafSystem):
     """The plant's contact results -> the force the world puts on the gripper (palm and
     fingers; N, world frame): what a force sensor at the wrist reads, less the gripper's own
@@ -131,24 +136,11 @@ class _WristForce(LeafSystem):
         self.DeclareVectorOutputPort("ur5.wrist_force", 3, self._calc)
 
     def _calc(self, context, output) -> None:
-        plant, mine = self._plant, self._bodies
-        results = self.get_input_port(0).Eval(context)
-        inspector = self._sg.model_inspector()
+        mine = self._bodies
         f = np.zeros(3)
-        for k in range(results.num_hydroelastic_contacts()):
-            info = results.hydroelastic_contact_info(k)
-            surface = info.contact_surface()
-            a, b = (
-                plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index()
-                for g in (surface.id_M(), surface.id_N())
-            )
-            if (a in mine) != (b in mine):  # F_Ac_W is the force on M's body
-                f += info.F_Ac_W().translational() * (1.0 if a in mine else -1.0)
-        for k in range(results.num_point_pair_contacts()):
-            info = results.point_pair_contact_info(k)
-            a, b = info.bodyA_index(), info.bodyB_index()
-            if (a in mine) != (b in mine):  # contact_force() is the force on body B
-                f += info.contact_force() * (1.0 if b in mine else -1.0)
+        for a, b, f_a in contact_forces(self._plant, self._sg, self.get_input_port(0).Eval(context)):
+            if (a in mine) != (b in mine):
+                f += f_a if a in mine else -f_a
         output.SetFromVector(f)
 
 
@@ -208,12 +200,16 @@ class StationHandles:
         self.bodies = bodies
         self.scene = scene
 
+    def finger_indices(self) -> set:
+        """The two fingers' body indices (contact scoring: `station.scoring.finger_forces`)."""
+        return {self.plant.GetBodyByName(n, self.robot).index() for n in GRIPPER_BODIES[1:]}
+
     def sleep(self, period: float):
         """Objects at rest out of everything's reach leave the physics (`station.speed.Sleep`),
         looked at every ``period`` s."""
         from mog_drake.station.speed import Sleep
 
-        gripper = [self.plant.GetBodyByName(n, self.robot) for n in ("palm", "left_finger", "right_finger")]
+        gripper = [self.plant.GetBodyByName(n, self.robot) for n in GRIPPER_BODIES]
         radii = {i: self.scene.shape(i).reach for i in self.bodies}
         return Sleep(
             self.plant, self.scene_graph, self.bodies, gripper, radii, period=period, accel=self.arm_accel
@@ -380,7 +376,7 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None, board=None):
     gs = builder.AddSystem(_GripperState(plant, jl, jr, gripper.plate_thickness))
     builder.Connect(plant.get_state_output_port(), gs.get_input_port())
     builder.ExportOutput(gs.get_output_port(), "gripper.state_measured")
-    grip = [plant.GetBodyByName(n, robot) for n in ("palm", "left_finger", "right_finger")]
+    grip = [plant.GetBodyByName(n, robot) for n in GRIPPER_BODIES]
     wrist = builder.AddSystem(_WristForce(plant, scene_graph, grip))
     builder.Connect(plant.get_contact_results_output_port(), wrist.get_input_port())
     builder.ExportOutput(wrist.get_output_port(), "ur5.wrist_force")

@@ -17,6 +17,7 @@ from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
+from mog_drake.station.ports import PORTS_IN
 from mog_drake.station.scoring import finger_forces, jaws_land_on, objects_in_bin, where_left
 from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
@@ -44,6 +45,42 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
         variants = [check.variant(s) if verifier is None else verifier for s in scales]
         check = RobustVerifier(check, variants, spec.robust)
     return GraspPlanner(check, spec.grasp, keep_out=scenario.keep_out())
+
+
+def make_controller(scenario: Scenario, view: ArmView | None = None) -> ControllerSystem:
+    """The Controller of ``scenario``: its arm motions, bin, jaws' timing and settings;
+    ``view`` (`arm_view`): when the arm hides none of the table (None: it always returns to
+    the observe pose for an image)."""
+    g = scenario.gripper
+    motion = ArmMotion(
+        scenario.robot.base,
+        scenario.robot.max_joint_speed,
+        scenario.robot.max_joint_acceleration,
+        scenario.motion,
+        finger_height=g.finger_height,
+        finger_clearance=g.finger_clearance,
+        q_home=scenario.robot.home,
+    )
+    return ControllerSystem(
+        motion,
+        scenario.robot.home,
+        scenario.bin.center,
+        scenario.bin.depth,
+        open_width=OPEN_WIDTH,
+        close_time=OPEN_WIDTH / 2 / g.close_speed + scenario.controller.close_margin,
+        time_limit=scenario.time_limit,
+        config=scenario.controller,
+        arm_view=view,
+        push_speed=scenario.planner.pushes.speed,
+    )
+
+
+def connect_arm(builder, station, controller) -> None:
+    """The station's arm and gripper to the Controller, both ways, by port name."""
+    for name in ("ur5.position_measured", "ur5.wrist_force", "gripper.state_measured"):
+        builder.Connect(station.GetOutputPort(name), controller.GetInputPort(name))
+    for name in PORTS_IN:
+        builder.Connect(controller.GetOutputPort(name), station.GetInputPort(name))
 
 
 def arm_view(scenario: Scenario, intrinsics) -> ArmView:
@@ -112,30 +149,8 @@ def MakePickDiagram(
             ahead_planner=make_planner(scenario, verifier),
         ),
     )
-    g = scenario.gripper
-    motion = ArmMotion(
-        scenario.robot.base,
-        scenario.robot.max_joint_speed,
-        scenario.robot.max_joint_acceleration,
-        scenario.motion,
-        finger_height=g.finger_height,
-        finger_clearance=g.finger_clearance,
-        q_home=scenario.robot.home,
-    )
     controller = builder.AddNamedSystem(
-        "controller",
-        ControllerSystem(
-            motion,
-            scenario.robot.home,
-            scenario.bin.center,
-            scenario.bin.depth,
-            open_width=OPEN_WIDTH,
-            close_time=OPEN_WIDTH / 2 / g.close_speed + scenario.controller.close_margin,
-            time_limit=scenario.time_limit,
-            config=scenario.controller,
-            arm_view=arm_view(scenario, handles.camera_intrinsics),
-            push_speed=scenario.planner.pushes.speed,
-        ),
+        "controller", make_controller(scenario, arm_view(scenario, handles.camera_intrinsics))
     )
     builder.Connect(station.GetOutputPort("camera.rgb_image"), perception.GetInputPort("camera.rgb_image"))
     builder.Connect(
@@ -147,15 +162,7 @@ def MakePickDiagram(
     builder.Connect(perception.GetOutputPort("checked"), controller.GetInputPort("checked"))
     builder.Connect(controller.GetOutputPort("check"), perception.GetInputPort("check"))
     builder.Connect(planner_sys.GetOutputPort("decision"), controller.GetInputPort("decision"))
-    builder.Connect(
-        station.GetOutputPort("ur5.position_measured"), controller.GetInputPort("ur5.position_measured")
-    )
-    builder.Connect(
-        station.GetOutputPort("gripper.state_measured"), controller.GetInputPort("gripper.state_measured")
-    )
-    builder.Connect(station.GetOutputPort("ur5.wrist_force"), controller.GetInputPort("ur5.wrist_force"))
-    builder.Connect(controller.GetOutputPort("ur5.position"), station.GetInputPort("ur5.position"))
-    builder.Connect(controller.GetOutputPort("gripper.position"), station.GetInputPort("gripper.position"))
+    connect_arm(builder, station, controller)
     diagram = builder.Build()
     diagram.set_name("mog_drake_pick")
     return PickDiagram(diagram, station, handles, perception, planner_sys, controller)
@@ -248,9 +255,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
     pressed: dict[int, float] = {}  # attempt index -> the largest force its open fingers put on an object (N)
     if scored:
-        fingers = {
-            handles.plant.GetBodyByName(f"{s}_finger", handles.robot).index() for s in ("left", "right")
-        }
+        fingers = handles.finger_indices()
         objects = {b.index() for b in handles.bodies.values()}
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:

@@ -21,22 +21,19 @@ OVERLAPS_MM = (-3.0, 1.0, 3.0, 6.0, 10.0)
 def landing_attempt(neighbour: str, overlap: float, guard: float = 0.0) -> dict:
     """One attempt on the target whose left plate comes down ``overlap`` (m) onto the
     neighbour, the descent guarded at ``guard`` N (ControllerConfig.guard_force; 0: off)."""
-    from dataclasses import replace
-
     from pydrake.common.value import AbstractValue
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
     from pydrake.systems.framework import DiagramBuilder, EventStatus
     from pydrake.systems.primitives import ConstantValueSource
 
-    from mog_drake.geometry.gripper import OPEN_WIDTH, GripperGeometry
+    from mog_drake.geometry.gripper import GripperGeometry
     from mog_drake.planning.decision import PickDecision
     from mog_drake.scenario import Scenario
     from mog_drake.scenes import Scene, SceneObject, default_library
     from mog_drake.station import MakeStation
     from mog_drake.station.scoring import finger_forces, objects_in_bin
-    from mog_drake.systems.controller import ControllerSystem
     from mog_drake.systems.messages import Checked, Decision, Perceived
-    from mog_drake.systems.motion import ArmMotion
+    from mog_drake.systems.pick import connect_arm, make_controller
 
     lib = default_library()
     x0, y0 = 0.05, -0.05
@@ -49,29 +46,13 @@ def landing_attempt(neighbour: str, overlap: float, guard: float = 0.0) -> dict:
     near = x0 - GAP + lib[neighbour].vertices[:, 0].max()
     grasp = np.array([near - overlap + g.plate_thickness + g.w_g / 2, y0, 0.0])
     sc = Scenario()
+    sc.controller.guard_force = guard
     station, h = MakeStation(sc, scene)
-    gp = sc.gripper
-    controller = ControllerSystem(
-        ArmMotion(
-            sc.robot.base,
-            sc.robot.max_joint_speed,
-            sc.robot.max_joint_acceleration,
-            sc.motion,
-            finger_height=gp.finger_height,
-            finger_clearance=gp.finger_clearance,
-            q_home=sc.robot.home,
-        ),
-        sc.robot.home,
-        sc.bin.center,
-        sc.bin.depth,
-        open_width=OPEN_WIDTH,
-        close_time=OPEN_WIDTH / 2 / gp.close_speed + sc.controller.close_margin,
-        time_limit=sc.time_limit,
-        config=replace(sc.controller, guard_force=guard),
-    )
+    controller = make_controller(sc)  # no arm view: back to the observe pose after the drop
     b = DiagramBuilder()
     b.AddSystem(station)
     b.AddSystem(controller)
+    connect_arm(b, station, controller)
     fixed = {
         "decision": Decision(1, PickDecision("grasp", grasp, (0,)), 1),
         "scene": Perceived(counter=10**6),
@@ -80,21 +61,13 @@ def landing_attempt(neighbour: str, overlap: float, guard: float = 0.0) -> dict:
     for port, value in fixed.items():
         src = b.AddSystem(ConstantValueSource(AbstractValue.Make(value)))
         b.Connect(src.get_output_port(), controller.GetInputPort(port))
-    for a, c in (
-        ("ur5.position_measured", "ur5.position_measured"),
-        ("gripper.state_measured", "gripper.state_measured"),
-        ("ur5.wrist_force", "ur5.wrist_force"),
-    ):
-        b.Connect(station.GetOutputPort(a), controller.GetInputPort(c))
-    for p in ("ur5.position", "gripper.position"):
-        b.Connect(controller.GetOutputPort(p), station.GetInputPort(p))
     sim = Simulator(b.Build())
     ApplySimulatorConfig(sc.simulator, sim)
     ctx = sim.get_mutable_context()
     cctx = controller.GetMyContextFromRoot(ctx)
     pc = h.plant.GetMyContextFromRoot(ctx)
     start = h.plant.EvalBodyPoseInWorld(pc, h.bodies[1]).translation().copy()
-    fingers = {h.plant.GetBodyByName(f"{s}_finger", h.robot).index() for s in ("left", "right")}
+    fingers = h.finger_indices()
     peak = [0.0]
 
     def monitor(root):  # the largest force the fingers put on the neighbour before the jaws close
