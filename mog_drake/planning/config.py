@@ -189,12 +189,15 @@ class LookaheadConfig:
 
 @dataclass
 class RobustConfig:
-    """Robust grasps (`mog_drake.planning.robust`): after the nominal check passes, ``samples``
-    checks of a perturbed world, of which ``required`` (0: all) must lift the group. Off (0
-    samples) by default, and in the faithful reproduction of the paper."""
+    """Robust grasps (`mog_drake.planning.robust`): before any physics, the grasp's geometry in
+    ``screen`` perturbed worlds, every one of which must keep the open jaws off every object
+    and each group object between them; after the nominal check passes, ``samples`` checks
+    of a perturbed world, of which ``required`` (0: all) must lift the group. Off (0 screen,
+    0 samples) by default, and in the faithful reproduction of the paper."""
 
     samples: int = 0
     required: int = 0
+    screen: int = 0
     # The perturbations: what the planner is unsure of (docs/physics.md, the realistic cell).
     shift_sigma: float = 0.003  # m per axis, one shift of every object: the camera's calibration
     pose_sigma: float = 0.0005  # m per axis, each object's own: perception's fit
@@ -206,6 +209,8 @@ class RobustConfig:
     def check(self) -> None:
         if not 0 <= self.samples <= 16 or not 0 <= self.required <= self.samples:
             raise MogError("planner.robust: samples must be in [0, 16] and required in [0, samples]")
+        if not 0 <= self.screen <= 64:
+            raise MogError(f"planner.robust.screen must be in [0, 64], got {self.screen}")
         for key, most in (("shift_sigma", 0.02), ("pose_sigma", 0.02), ("yaw_sigma_deg", 10.0)):
             if not 0 <= getattr(self, key) <= most:
                 raise MogError(f"planner.robust.{key} must be in [0, {most:g}], got {getattr(self, key)}")

@@ -37,7 +37,7 @@ def make_planner(scenario: Scenario, verifier=None) -> GraspPlanner:
 
     spec = scenario.planner
     check = verifier or DrakeVerifier(scenario.verifier, physics=scenario.gripper)
-    if spec.robust.samples:
+    if spec.robust.samples or spec.robust.screen:
         from mog_drake.planning.robust import RobustVerifier, perturbation_scales
         from mog_drake.scenes.scene import MAX_OBJECTS
 

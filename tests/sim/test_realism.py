@@ -265,9 +265,9 @@ def test_a_partial_lift_at_the_perceived_poses_stays_a_partial_lift_under_the_ro
             return GraspResult(self.success, list(self.lifted))
 
     scene = make_scene(
-        [("thick_bar", 0.0, 0.0, 0.3), ("thick_bar", 0.03, 0.0, 0.3), ("thick_bar", 0.06, 0.0, 0.3)]
+        [("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.02, 0.0), ("thick_bar", 0.0, 0.04, 0.0)]
     )
-    across = np.array([0.03, 0.0, np.pi / 2])  # the open jaws clear of every bar, moved or not
+    across = np.array([0.0, 0.02, np.pi / 2])  # the open jaws 11.5 mm clear of the bars, moved or not
     base, variant = Fake(False, [0, 1]), Fake(False, [0])  # the hardest world lifts one
     robust = RobustVerifier(base, [variant], RobustConfig(samples=1))
     r = robust.check(scene, [0, 1, 2], across)
@@ -302,9 +302,48 @@ def test_a_grasp_whose_open_jaws_land_on_an_object_once_moved_is_refused_without
     moved = robust.perturbed(scene, [0], grasp, 0)
     assert moved.objects[1].y < 0.055 - 0.0015  # this seed moves the bar under the jaw
     r = robust.check(scene, [0], grasp)
-    assert not r.success and "open jaws start on an object in 1 of 1" in r.error and not r.lifted
+    assert (
+        not r.success
+        and "open jaws start on an object or off the group in 1 of 1" in r.error
+        and not r.lifted
+    )
     assert (robust.base.calls, robust.variants[0].calls) == (0, 0)
     two = RobustVerifier(
         Fake(), [Fake(), Fake()], RobustConfig(samples=2, required=1, shift_sigma=0.003, seed=1)
     )
     assert two.check(scene, [0], grasp).success and two.base.calls == 1
+
+
+def test_the_screen_keeps_the_open_jaws_as_far_from_a_neighbour_as_the_pose_error_reaches():
+    """``screen`` worlds, geometry only, with no physics sample: a jaw 1.5 mm from a
+    neighbour, each object's own error 4 mm (level 4's): some of 8 moved worlds put the bar
+    under the jaw, so the grasp is refused and nothing is simulated; with the neighbour 40 mm
+    away all 8 are clear and the nominal check alone decides. One world (``screen: 1``) can
+    miss what 8 find."""
+    from mog_drake.planning.protocol import GraspResult
+
+    class Fake:
+        def __init__(self):
+            self.calls = 0
+
+        def check(self, scene, group, grasp):
+            self.calls += 1
+            return GraspResult(True, list(group))
+
+    grasp = np.array([0.0, 0.0, np.pi / 2])
+    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
+    far = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.095, 0.0)])
+    cfg = RobustConfig(screen=8, pose_sigma=0.004, yaw_sigma_deg=4)
+    robust = RobustVerifier(Fake(), [], cfg)
+    clear = robust.clear([robust.perturbed(near, [0], grasp, k) for k in range(8)], [0], grasp)
+    assert 0 < sum(clear) < 8
+    r = robust.check(near, [0], grasp)
+    assert not r.success and f"in {8 - sum(clear)} of 8 perturbed worlds" in r.error and not r.lifted
+    assert robust.base.calls == 0
+    r = robust.check(far, [0], grasp)
+    assert r.success and r.lifted == [0] and robust.base.calls == 1
+    first = clear.index(True)
+    one = RobustVerifier(Fake(), [], RobustConfig(screen=1, pose_sigma=0.004, yaw_sigma_deg=4, seed=0))
+    assert one.clear([one.perturbed(near, [0], grasp, first)], [0], grasp) == [True]
+    with pytest.raises(MogError, match="planner.robust.screen"):
+        RobustConfig(screen=65).check()
