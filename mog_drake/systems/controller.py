@@ -266,6 +266,8 @@ class ControllerSystem(LeafSystem):
                 "lookahead": d.lookahead,
                 **({"unrecognised": True} if dec.unrecognised else {}),
                 **({"lone": dec.lone} if dec.lone else {}),
+                # Found by the last resort: a robust planner's screen and samples relaxed.
+                **({"last_resort": True} if dec.last_resort else {}),
             }
         )
 

@@ -45,7 +45,11 @@ def test_controller_state_machine_with_fixed_inputs():
     sim.AdvanceTo(0.5)
     assert c.state(ctx).mode == "wait" and c.GetOutputPort("request").Eval(ctx)[0] == 1
     decision.GetMutableData().set_value(
-        Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0, 1), planning_time=0.1), 5)
+        Decision(
+            1,
+            PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0, 1), planning_time=0.1, last_resort=True),
+            5,
+        )
     )
     t = 0.5
     while t < 12.0:
@@ -59,6 +63,7 @@ def test_controller_state_machine_with_fixed_inputs():
     assert grippers[modes.index("close")] == 0.0 and grippers[modes.index("home")] == pytest.approx(0.075)
     a = c.state(ctx).attempts[0]
     assert a["group"] == [0, 1] and a["held_width"] == pytest.approx(0.03) and a["end"] > a["start"]
+    assert a["last_resort"] is True  # found with a robust planner's screen relaxed: recorded
     assert c.GetOutputPort("request").Eval(ctx)[0] == 2  # asked for the next image over the bin
     s = c.state(ctx)
     assert s.counter == 2 and s.retakes == 0  # unchanged: waits for the decision of that image
