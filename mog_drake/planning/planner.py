@@ -200,11 +200,6 @@ class GraspPlanner:
             t = time.perf_counter()
             order = order[passed[order]]  # GraspFailure(): drop candidates violating a condition
             times["filter"] += time.perf_counter() - t
-        screen = getattr(self.verifier, "screen", None)  # a robust check's (`planning.robust`)
-        if screen is not None and len(order):
-            t = time.perf_counter()
-            order = order[screen(scene, group, cands[order])]
-            times["filter"] += time.perf_counter() - t
         if len(avoid) and len(cands):
             order = order[~repeats(cands, avoid)[order]]
         skip = [int(i) for i in skip if 0 <= int(i) < len(cands)]

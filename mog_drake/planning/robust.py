@@ -9,17 +9,20 @@ Each perturbation is drawn from the grasp, its group and the poses it is checked
 same check asked again gives the same verdict; the k-th sample's friction and mass are the
 k-th variant verifier's own (built once, by the caller), so each keeps its built plants.
 
-Before any physics, two screens of a grasp's geometry at moved poses: a world whose poses put
-an object under the open jaws, or a group object out from between them, would fail a check
-at its start. ``screen`` worlds (drawn from the group and the poses) screen every candidate
-at once in the grasp planner (`screen`), before its physics checks, so the ones they drop
-do not spend its cap on physics checks; each must be clear in all of them. They keep the
-plates as far from every neighbour as the pose error reaches: one sample's world at level 4
-left the guarded arm stopping on a neighbour in 57 of 146 attempts (docs/experiments.md).
-In `check`, each sample's world is screened too, and a grasp too few of them leave clear to
-reach ``required`` is refused without simulating anything, not even the nominal check: on
-the realistic cell 33 of the hardest world's 37 refusals in mog's replayed decisions (tables
-0-5) were this one (docs/design.md).
+Before any physics, a screen of the grasp's geometry at moved poses: in a world whose poses
+put an object under the open jaws, or a group object out from between them, the group is
+not lifted (the perturbed check would end there too). The grasp is refused without
+simulating anything, not even the nominal check, when any of the first ``screen`` worlds is
+not clear, or too few of the ``samples`` worlds are to reach ``required``: a grasp whose
+jaws may land on an object is not taken, whole or as a partial lift. Only the screen's
+worlds keep the jaws as far from every neighbour as the pose error reaches: one world
+(``samples: 1``) at level 4 left the guarded arm stopping on a neighbour in 57 of 146
+attempts (docs/experiments.md). On the realistic cell 33 of the hardest world's 37
+refusals in mog's replayed decisions (tables 0-5) were the screen's (docs/design.md).
+Each grasp draws its own worlds, and a refused grasp counts against the grasp planner's cap
+on physics checks: where uncertainty screens a group's best candidates, the group ends early
+and a smaller one is tried. Screening every candidate in the planner instead, the cap left
+to physics, took larger groups that failed more (docs/experiments.md, v33).
 
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
@@ -80,18 +83,23 @@ class RobustVerifier:
         """The check without perturbations: the last resort's, when no robust grasp is left."""
         return self.base
 
-    def clear(self, world, group, grasps) -> np.ndarray:
-        """(B,) True where the open jaws of ``grasps`` (B, 3) stay off every object of
-        ``world`` and each group object reaches between them (the conditions' collision and
-        area checks)."""
-        ev = evaluate_grasps(
-            world.polygons(), group, np.atleast_2d(grasps), getattr(self.base, "gripper", None)
-        )
-        return ev.collision_free & ev.area_ok
+    def clear(self, worlds, group, grasp) -> list[bool]:
+        """For each world: the grasp's open jaws off every object and each group object
+        reaching between them (the conditions' collision and area checks at its poses)."""
+        gripper = getattr(self.base, "gripper", None)
+        g = np.asarray(grasp, dtype=float)[None, :]
+        out = []
+        for w in worlds:
+            ev = evaluate_grasps(w.polygons(), group, g, gripper)
+            out.append(bool(ev.collision_free[0] and ev.area_ok[0]))
+        return out
 
-    def perturbed(self, scene, sample: int, key: str):
-        """``scene`` with its poses moved for the ``sample``-th world drawn from ``key``."""
+    def perturbed(self, scene, group, grasp, sample: int):
+        """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""
         cfg = self.config
+        key = repr(
+            (np.round(grasp, 4).tolist(), sorted(int(i) for i in group), [o.pose for o in scene.objects])
+        )
         rng = np.random.default_rng([cfg.seed, sample, zlib.crc32(key.encode())])
         shift = rng.normal(0.0, cfg.shift_sigma, 2)
         objects = []
@@ -101,37 +109,19 @@ class RobustVerifier:
             objects.append(SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + dtheta))
         return replace(scene, objects=objects)
 
-    def world(self, scene, group, grasp, sample: int):
-        """The ``sample``-th check's world of ``grasp``: drawn from the grasp, its group and
-        the poses."""
-        key = repr(
-            (np.round(grasp, 4).tolist(), sorted(int(i) for i in group), [o.pose for o in scene.objects])
-        )
-        return self.perturbed(scene, sample, key)
-
-    def screen(self, scene, group, grasps) -> np.ndarray:
-        """(B,) True where the open jaws of ``grasps`` (B, 3) stay off every object, and each
-        group object reaches between them, in every one of ``config.screen`` perturbed worlds:
-        geometry only, every candidate at once, before any physics (the grasp planner drops
-        the others before its physics checks, so they do not spend its cap). The worlds are
-        drawn from the group and the poses, the same for every candidate."""
-        grasps = np.atleast_2d(np.asarray(grasps, dtype=float))
-        ok = np.ones(len(grasps), dtype=bool)
-        key = repr((sorted(int(i) for i in group), [o.pose for o in scene.objects]))
-        for k in range(self.config.screen):
-            ok &= self.clear(self.perturbed(scene, k, key), group, grasps)
-        return ok
-
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
-        worlds = [self.world(scene, group, grasp, k) for k in range(len(self.variants))]
-        clear = [bool(self.clear(w, group, grasp)[0]) for w in worlds]
-        if sum(clear) < self.required:
-            n = len(clear) - sum(clear)
+        n_worlds = max(self.config.screen, len(self.variants))
+        worlds = [self.perturbed(scene, group, grasp, k) for k in range(n_worlds)]
+        clear = self.clear(worlds, group, grasp)
+        screened = len(clear[: self.config.screen]) - sum(clear[: self.config.screen])
+        if screened or sum(clear[: len(self.variants)]) < self.required:
+            of = self.config.screen if screened else len(self.variants)
+            n = screened or of - sum(clear[:of])
             return GraspResult(
                 False,
                 wall_time=time.perf_counter() - t0,
-                error=f"not robust: the open jaws start on an object or off the group in {n} of {len(clear)} perturbed worlds",
+                error=f"not robust: the open jaws start on an object or off the group in {n} of {of} perturbed worlds",
                 complete=False,
             )
         first = self.base.check(scene, group, grasp)

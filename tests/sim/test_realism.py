@@ -1,7 +1,5 @@
 """The realistic cell (`mog_drake.sim.realism`) and robust grasps (`mog_drake.planning.robust`)."""
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import shapely
@@ -301,7 +299,7 @@ def test_a_grasp_whose_open_jaws_land_on_an_object_once_moved_is_refused_without
     scene = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
     grasp = np.array([0.0, 0.0, np.pi / 2])  # a jaw 1.5 mm from the second bar: clear as seen
     robust = RobustVerifier(Fake(), [Fake()], RobustConfig(samples=1, shift_sigma=0.003, seed=1))
-    moved = robust.world(scene, [0], grasp, 0)
+    moved = robust.perturbed(scene, [0], grasp, 0)
     assert moved.objects[1].y < 0.055 - 0.0015  # this seed moves the bar under the jaw
     r = robust.check(scene, [0], grasp)
     assert (
@@ -317,43 +315,35 @@ def test_a_grasp_whose_open_jaws_land_on_an_object_once_moved_is_refused_without
 
 
 def test_the_screen_keeps_the_open_jaws_as_far_from_a_neighbour_as_the_pose_error_reaches():
-    """``screen`` worlds, geometry only: a jaw 1.5 mm from a neighbour, each object's own
-    error 4 mm (level 4's): some of 8 moved worlds put the bar under the jaw, so the grasp is
-    screened out; with the neighbour 40 mm away all 8 are clear. One world can miss what 8
-    find. The grasp planner drops the screened candidates before its physics checks: with a
-    cap of one check, that check goes to a grasp clear in all 8 worlds."""
-    from mog_drake.planning.planner import GraspConfig, GraspPlanner
+    """``screen`` worlds, geometry only, with no physics sample: a jaw 1.5 mm from a
+    neighbour, each object's own error 4 mm (level 4's): some of 8 moved worlds put the bar
+    under the jaw, so the grasp is refused and nothing is simulated; with the neighbour 40 mm
+    away all 8 are clear and the nominal check alone decides. One world (``screen: 1``) can
+    miss what 8 find."""
     from mog_drake.planning.protocol import GraspResult
 
     class Fake:
         def __init__(self):
-            self.grasps = []
+            self.calls = 0
 
         def check(self, scene, group, grasp):
-            self.grasps.append(np.array(grasp))
+            self.calls += 1
             return GraspResult(True, list(group))
 
     grasp = np.array([0.0, 0.0, np.pi / 2])
-    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)], group=[0])
-    far = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.095, 0.0)], group=[0])
-    cfg = RobustConfig(screen=8, pose_sigma=0.004, yaw_sigma_deg=4, seed=1)  # 3 of its 8 land
+    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
+    far = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.095, 0.0)])
+    cfg = RobustConfig(screen=8, pose_sigma=0.004, yaw_sigma_deg=4)
     robust = RobustVerifier(Fake(), [], cfg)
-    assert robust.screen(near, [0], grasp).tolist() == [False]
-    assert robust.screen(far, [0], grasp).tolist() == [True]
-    ones = [
-        RobustVerifier(Fake(), [], replace(cfg, screen=1, seed=s)).screen(near, [0], grasp)[0]
-        for s in range(8)
-    ]
-    assert any(ones) and not all(ones)
-    # Boxed in: a bar 1.5 mm from each jaw's outer face, along and across the target.
-    boxed = make_scene(
-        [("thick_bar", 0.0, 0.0, 0.0)]
-        + [("thick_bar", x, y, 0.0) for x, y in ((0, 0.055), (0, -0.055), (0.0685, 0), (-0.0685, 0))],
-        group=[0],
-    )
-    plain = GraspPlanner(Fake(), GraspConfig("gp", max_physics=1)).plan(boxed, [0])
-    assert plain.found and not robust.screen(boxed, [0], plain.grasp).all()  # the top-ranked lands
-    plan = GraspPlanner(robust, GraspConfig("gp", max_physics=1)).plan(boxed, [0])
-    assert plan.found and len(robust.base.grasps) == 1 and robust.screen(boxed, [0], plan.grasp).all()
+    clear = robust.clear([robust.perturbed(near, [0], grasp, k) for k in range(8)], [0], grasp)
+    assert 0 < sum(clear) < 8
+    r = robust.check(near, [0], grasp)
+    assert not r.success and f"in {8 - sum(clear)} of 8 perturbed worlds" in r.error and not r.lifted
+    assert robust.base.calls == 0
+    r = robust.check(far, [0], grasp)
+    assert r.success and r.lifted == [0] and robust.base.calls == 1
+    first = clear.index(True)
+    one = RobustVerifier(Fake(), [], RobustConfig(screen=1, pose_sigma=0.004, yaw_sigma_deg=4, seed=0))
+    assert one.clear([one.perturbed(near, [0], grasp, first)], [0], grasp) == [True]
     with pytest.raises(MogError, match="planner.robust.screen"):
         RobustConfig(screen=65).check()
