@@ -38,6 +38,8 @@ from dataclasses import replace
 import numpy as np
 
 from mog_drake.geometry.conditions import evaluate_grasps
+from mog_drake.geometry.gripper import GripperGeometry
+from mog_drake.geometry.groups import objects_at_grasp
 from mog_drake.planning.config import RobustConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import SceneObject
@@ -94,26 +96,45 @@ class RobustVerifier:
             out.append(bool(ev.collision_free[0] and ev.area_ok[0]))
         return out
 
-    def perturbed(self, scene, group, grasp, sample: int):
-        """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""
+    def perturbed(self, scene, group, grasp, sample: int, keep=None):
+        """``scene`` with its poses moved for the ``sample``-th check of ``grasp``; with
+        ``keep`` (sorted ids), only those objects, each moved as in the whole scene."""
         cfg = self.config
         key = repr(
             (np.round(grasp, 4).tolist(), sorted(int(i) for i in group), [o.pose for o in scene.objects])
         )
         rng = np.random.default_rng([cfg.seed, sample, zlib.crc32(key.encode())])
         shift = rng.normal(0.0, cfg.shift_sigma, 2)
+        kept = None if keep is None else set(keep)
         objects = []
-        for o in scene.objects:
+        for i, o in enumerate(scene.objects):
             dx, dy = shift + rng.normal(0.0, cfg.pose_sigma, 2)
             dtheta = np.radians(rng.normal(0.0, cfg.yaw_sigma_deg))
-            objects.append(SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + dtheta))
+            if kept is None or i in kept:
+                objects.append(SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + dtheta))
         return replace(scene, objects=objects)
+
+    def within_reach(self, scene, group, grasp) -> list[int]:
+        """The objects the screen's worlds can put under the open jaws of ``grasp``: the group
+        and every object whose outline comes within the jaws' swept rectangle (or a group
+        object's disc) plus five standard deviations of the perturbations (the shift, the
+        object's own error, and the turn of the farthest outline point about its centre). The
+        others cannot change a world's verdict, and their polygons were most of its time."""
+        cfg = self.config
+        radius = max((scene.shape(i).radius for i in range(len(scene))), default=0.0)
+        margin = 5 * (cfg.shift_sigma + cfg.pose_sigma) + radius * np.radians(5 * cfg.yaw_sigma_deg)
+        return objects_at_grasp(
+            scene, group, grasp, getattr(self.base, "gripper", None) or GripperGeometry(), margin
+        )
 
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
         n_worlds = max(self.config.screen, len(self.variants))
-        worlds = [self.perturbed(scene, group, grasp, k) for k in range(n_worlds)]
-        clear = self.clear(worlds, group, grasp)
+        # Screen-only worlds hold just the objects within reach (the physics samples' the whole table).
+        keep = None if self.variants else self.within_reach(scene, group, grasp)
+        at = group if keep is None else [keep.index(int(i)) for i in group]
+        worlds = [self.perturbed(scene, group, grasp, k, keep) for k in range(n_worlds)]
+        clear = self.clear(worlds, at, grasp)
         screened = len(clear[: self.config.screen]) - sum(clear[: self.config.screen])
         if screened or sum(clear[: len(self.variants)]) < self.required:
             of = self.config.screen if screened else len(self.variants)
