@@ -253,8 +253,9 @@ class Perceiver(InstanceFitter):
         za = Pa[..., 2]
         if still:
             hidden |= ~(za < cfg.max_height)
-        if cfg.fit_table:  # heights from the table's plane, as `perceive` measures them: on a
-            # miscalibrated camera the table itself would otherwise appear where the arm was
+        if cfg.fit_table and not still:  # heights from the table's plane, as `perceive`
+            # measures them (for `appeared`, which a still check leaves out): on a miscalibrated
+            # camera the table itself would otherwise appear where the arm was
             za = za - table_plane(Pa, region & ~hidden, cfg.table_band)
         # Side walls count for nothing: seen edge-on, their pixels change depth with a tilt of
         # a degree or a rocking object (on rendered tables, the same wall moved by a pixel or
