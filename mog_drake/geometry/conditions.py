@@ -181,6 +181,27 @@ def _near_pairs(polys: PolygonSet, grasps: np.ndarray, gripper: GripperGeometry)
     return bi, mi, P, xlo, xhi, hits_jaw, overlaps(-hw, hw)
 
 
+def jaws_clear(
+    polys: PolygonSet, worlds: int, group, grasp, gripper: GripperGeometry | None = None
+) -> np.ndarray:
+    """(W,) for ``polys`` holding ``worlds`` copies of one scene's M objects, world after
+    world (W*M polygons, each world its own poses), and one grasp: True where its open jaws
+    overlap no object of that world and every ``group`` object (indices within a world) has
+    material inside S. `evaluate_grasps`' collision_free & area_ok, for many worlds at once."""
+    gripper = gripper or GripperGeometry()
+    g = np.asarray(grasp, dtype=float)[None, :]
+    _, mi, P, _, _, hits_jaw, in_s_pair = _near_pairs(polys, g, gripper)
+    M = len(polys) // worlds
+    ok = np.ones(worlds, dtype=bool)
+    ok[mi[hits_jaw] // M] = False
+    member = np.zeros(M, dtype=bool)
+    member[np.asarray(group, dtype=int)] = True
+    need = in_s_pair & member[mi % M]
+    area = np.zeros(len(polys))
+    area[mi[need]] = box_intersection_area(P[need], gripper.boxes()["S"])
+    return ok & (area.reshape(worlds, M)[:, group] > AREA_EPS).all(axis=1)
+
+
 def jaw_collision_free(polys: PolygonSet, grasps, gripper: GripperGeometry | None = None) -> np.ndarray:
     """(B,) True where neither jaw overlaps any object (touching is allowed)."""
     gripper = gripper or GripperGeometry()

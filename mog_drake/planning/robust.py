@@ -37,9 +37,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from mog_drake.geometry.conditions import evaluate_grasps
-from mog_drake.geometry.gripper import GripperGeometry
-from mog_drake.geometry.groups import objects_at_grasp
+from mog_drake.geometry.conditions import PolygonSet, jaws_clear
 from mog_drake.planning.config import RobustConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import SceneObject
@@ -85,56 +83,63 @@ class RobustVerifier:
         """The check without perturbations: the last resort's, when no robust grasp is left."""
         return self.base
 
-    def clear(self, worlds, group, grasp) -> list[bool]:
-        """For each world: the grasp's open jaws off every object and each group object
-        reaching between them (the conditions' collision and area checks at its poses)."""
-        gripper = getattr(self.base, "gripper", None)
-        g = np.asarray(grasp, dtype=float)[None, :]
-        out = []
-        for w in worlds:
-            ev = evaluate_grasps(w.polygons(), group, g, gripper)
-            out.append(bool(ev.collision_free[0] and ev.area_ok[0]))
-        return out
-
-    def perturbed(self, scene, group, grasp, sample: int, keep=None):
-        """``scene`` with its poses moved for the ``sample``-th check of ``grasp``; with
-        ``keep`` (sorted ids), only those objects, each moved as in the whole scene."""
+    def offsets(self, scene, group, grasp, samples) -> np.ndarray:
+        """(len(samples), N, 3): each object's move (dx, dy, dtheta) in each listed sample's
+        world: a shift common to all (the calibration's) plus the object's own (the fit's),
+        drawn from the grasp, its group and the poses, so the same check asked again draws
+        the same worlds."""
         cfg = self.config
         key = repr(
             (np.round(grasp, 4).tolist(), sorted(int(i) for i in group), [o.pose for o in scene.objects])
         )
-        rng = np.random.default_rng([cfg.seed, sample, zlib.crc32(key.encode())])
-        shift = rng.normal(0.0, cfg.shift_sigma, 2)
-        kept = None if keep is None else set(keep)
-        objects = []
-        for i, o in enumerate(scene.objects):
-            dx, dy = shift + rng.normal(0.0, cfg.pose_sigma, 2)
-            dtheta = np.radians(rng.normal(0.0, cfg.yaw_sigma_deg))
-            if kept is None or i in kept:
-                objects.append(SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + dtheta))
+        crc, n = zlib.crc32(key.encode()), len(scene)
+        scale = np.array([cfg.pose_sigma, cfg.pose_sigma, cfg.yaw_sigma_deg])
+        out = np.empty((len(samples), n, 3))
+        for j, k in enumerate(samples):
+            z = np.random.default_rng([cfg.seed, k, crc]).standard_normal(2 + 3 * n)
+            out[j] = z[2:].reshape(n, 3) * scale
+            out[j, :, :2] += cfg.shift_sigma * z[:2]
+            out[j, :, 2] = np.radians(out[j, :, 2])
+        return out
+
+    def perturbed(self, scene, group, grasp, sample: int):
+        """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""
+        d = self.offsets(scene, group, grasp, [sample])[0]
+        objects = [
+            SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + t) for o, (dx, dy, t) in zip(scene.objects, d)
+        ]
         return replace(scene, objects=objects)
 
-    def within_reach(self, scene, group, grasp) -> list[int]:
-        """The objects the screen's worlds can put under the open jaws of ``grasp``: the group
-        and every object whose outline comes within the jaws' swept rectangle (or a group
-        object's disc) plus five standard deviations of the perturbations (the shift, the
-        object's own error, and the turn of the farthest outline point about its centre). The
-        others cannot change a world's verdict, and their polygons were most of its time."""
-        cfg = self.config
-        radius = max((scene.shape(i).radius for i in range(len(scene))), default=0.0)
-        margin = 5 * (cfg.shift_sigma + cfg.pose_sigma) + radius * np.radians(5 * cfg.yaw_sigma_deg)
-        return objects_at_grasp(
-            scene, group, grasp, getattr(self.base, "gripper", None) or GripperGeometry(), margin
+    def clear(self, scene, group, grasp, offsets) -> np.ndarray:
+        """(W,) for each world of ``offsets`` (`offsets`): the grasp's open jaws off every
+        object and each group object reaching between them (the conditions' collision and
+        area checks at its poses), all worlds at once."""
+        shapes = [scene.shape(i) for i in range(len(scene))]
+        W, K = len(offsets), len(shapes)
+        n_max = max((s.sides for s in shapes), default=3)
+        local = np.empty((K, n_max, 2))
+        for j, shape in enumerate(shapes):
+            local[j, : shape.sides], local[j, shape.sides :] = shape.vertices, shape.vertices[-1]
+        pose = np.array([o.pose for o in scene.objects]).reshape(K, 3)[None] + offsets
+        # As `transform` places each outline, in every world at once.
+        c, s = np.cos(pose[..., 2])[..., None], np.sin(pose[..., 2])[..., None]
+        vx, vy = local[None, ..., 0], local[None, ..., 1]
+        verts = np.stack(
+            [c * vx - s * vy + pose[..., 0, None], s * vx + c * vy + pose[..., 1, None]], axis=-1
         )
+        polys = PolygonSet(
+            vertices=verts.reshape(W * K, n_max, 2),
+            counts=np.tile([shape.sides for shape in shapes], W),
+            centers=pose[..., :2].reshape(W * K, 2),
+            radii=np.tile([shape.radius for shape in shapes], W),
+            d_fmin=np.tile([shape.d_fmin for shape in shapes], W),
+        )
+        return jaws_clear(polys, W, group, grasp, getattr(self.base, "gripper", None))
 
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
         n_worlds = max(self.config.screen, len(self.variants))
-        # Screen-only worlds hold just the objects within reach (the physics samples' the whole table).
-        keep = None if self.variants else self.within_reach(scene, group, grasp)
-        at = group if keep is None else [keep.index(int(i)) for i in group]
-        worlds = [self.perturbed(scene, group, grasp, k, keep) for k in range(n_worlds)]
-        clear = self.clear(worlds, at, grasp)
+        clear = self.clear(scene, group, grasp, self.offsets(scene, group, grasp, range(n_worlds))).tolist()
         screened = len(clear[: self.config.screen]) - sum(clear[: self.config.screen])
         if screened or sum(clear[: len(self.variants)]) < self.required:
             of = self.config.screen if screened else len(self.variants)
@@ -154,7 +159,7 @@ class RobustVerifier:
             if not clear[k]:
                 lifted, r = set(), GraspResult(False)  # screened: the jaws land on an object
             else:
-                r = variant.check(worlds[k], group, grasp)
+                r = variant.check(self.perturbed(scene, group, grasp, k), group, grasp)
             sim_time, wall_time = sim_time + r.sim_time, wall_time + r.wall_time
             lifted &= set(r.lifted)
             held += bool(r.success)

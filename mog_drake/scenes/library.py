@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +53,7 @@ class Shape:
     def mass(self) -> float:
         return self.area * self.height * self.density
 
-    @property
+    @cached_property  # asked for every object of every polygon set
     def radius(self) -> float:
         return float(np.linalg.norm(self.vertices, axis=1).max())
 
