@@ -26,7 +26,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import GripperGeometry, evaluate_grasps, gen_grasp_cands, rank_grasp_cands
+from mog_drake.geometry import (
+    GripperGeometry,
+    PolygonSet,
+    evaluate_grasps,
+    gen_grasp_cands,
+    jaw_collision_free,
+    rank_grasp_cands,
+)
 from mog_drake.geometry.gripper import clear_of_boxes
 from mog_drake.geometry.polygon import axis_gap, squeeze_basins
 from mog_drake.planning.config import LARGE_GROUP, METHODS, GraspConfig
@@ -170,7 +177,7 @@ class GraspPlanner:
         polys = scene.polygons()
 
         t = time.perf_counter()
-        cands, margin, final = self._candidates(polys, group)
+        cands, margin, final = self._candidates(polys, group, unrecognised_outlines(scene))
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None
@@ -238,16 +245,20 @@ class GraspPlanner:
             best_lift,
         )
 
-    def _candidates(self, polys, group):
-        """The candidates of ``group`` (Sec. 5.1) clear of the keep-out boxes; for a lone
-        object with squeeze basins in use, only those whose basin is wide enough, with each
-        basin's width and final axis (else None, None)."""
+    def _candidates(self, polys, group, blobs=None):
+        """The candidates of ``group`` (Sec. 5.1) clear of the keep-out boxes and with their
+        open jaws off every unrecognised blob (``blobs``, a PolygonSet: what perception saw
+        but could not fit, a knocked-over or leaning prism, is under a jaw as surely as an
+        object); for a lone object with squeeze basins in use, only those whose basin is
+        wide enough, with each basin's width and final axis (else None, None)."""
         cfg = self.config
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
         )
         if self.keep_out and len(cands):
             cands = cands[clear_of_boxes(cands, self.keep_out, self.gripper)]
+        if blobs is not None and len(cands):
+            cands = cands[jaw_collision_free(blobs, cands, self.gripper)]
         margin = final = None
         if (cfg.min_squeeze_margin_deg > 0 or cfg.lone_widest_basin) and len(group) == 1 and len(cands):
             final, margin = squeeze_basins(polys.polygon(group[0]), cands[:, 2])
@@ -277,3 +288,22 @@ class GraspPlanner:
             i = left.pop(k)
             tried.append(float(cands[i, 2]))
             yield i
+
+
+def unrecognised_outlines(scene) -> PolygonSet | None:
+    """The outlines of the unrecognised blobs perception reported with ``scene``
+    (``meta["unrecognised"]``: each the convex hull of its points seen from above) as a
+    PolygonSet for the jaws' collision check; None when there are none."""
+    outlines = [np.asarray(b["vertices"], dtype=float) for b in scene.meta.get("unrecognised", ())]
+    outlines = [v for v in outlines if len(v) >= 3]
+    if not outlines:
+        return None
+    n = max(len(v) for v in outlines)
+    centers = np.array([v.mean(axis=0) for v in outlines])
+    return PolygonSet(
+        vertices=np.array([np.vstack([v, np.repeat(v[-1:], n - len(v), axis=0)]) for v in outlines]),
+        counts=np.array([len(v) for v in outlines]),
+        centers=centers,
+        radii=np.array([np.linalg.norm(v - c, axis=1).max() for v, c in zip(outlines, centers)]),
+        d_fmin=np.zeros(len(outlines)),
+    )

@@ -258,6 +258,7 @@ class ControllerSystem(LeafSystem):
                 "planning_time": dec.planning_time,
                 "planning_cpu": d.cpu_time,
                 "objects_seen": d.objects_seen,
+                **({"blobs_seen": d.blobs_seen} if d.blobs_seen else {}),
                 "physics_checks": dec.physics_checks,
                 "expected": list(dec.expected),
                 # Groups replayed from memory, and whether the lookahead's memory was in time

@@ -56,6 +56,7 @@ class Decision(Immutable):
     counter: int = -1
     decision: PickDecision | None = None
     objects_seen: int = 0
+    blobs_seen: int = 0  # unrecognised blobs in the image it was planned from
     recent: tuple = ()  # the last grasps issued, not to be repeated
     failures: tuple = ()  # groups found to have no grasp (see next_pick)
     unrecognised_grasps: int = 0  # grasps of unrecognised blobs issued in a row

@@ -596,6 +596,31 @@ def test_the_planners_jaws_stay_out_of_the_bin():
         GraspPlanner(FakeVerifier(), keep_out=[(0.1, 0.0, 0.0, 0.1)])
 
 
+def test_the_planners_jaws_stay_off_what_perception_saw_but_could_not_fit():
+    """An unrecognised blob (a knocked-over or leaning prism perception reported by its
+    outline, ``meta["unrecognised"]``) where the first-ranked grasp of a bar puts a jaw: no
+    grasp the planner then asks about puts a jaw on it; without the blob the same grasp is
+    asked first."""
+    from mog_drake.geometry import GripperGeometry, jaw_collision_free
+    from mog_drake.planning.planner import unrecognised_outlines
+
+    bar = make_scene([("thick_bar", 0.0, 0.0, 0.3)], group=[0])
+    first = FakeVerifier()
+    GraspPlanner(first, GraspConfig()).plan(bar, [0])
+    x, y, th = first.asked[0]
+    g = GripperGeometry()
+    at = g.w_g / 2 + g.plate_thickness / 2  # the right jaw's centre, on the closing axis
+    cx, cy = x + at * np.cos(th), y + at * np.sin(th)
+    square = [[cx - 0.01, cy - 0.01], [cx + 0.01, cy - 0.01], [cx + 0.01, cy + 0.01], [cx - 0.01, cy + 0.01]]
+    bar.meta["unrecognised"] = [{"vertices": square, "top": 0.02}]
+    blobs = unrecognised_outlines(bar)
+    assert not jaw_collision_free(blobs, first.asked[0])[0]
+    seen = FakeVerifier()
+    GraspPlanner(seen, GraspConfig()).plan(bar, [0])
+    assert seen.asked and jaw_collision_free(blobs, np.array(seen.asked)).all()
+    assert unrecognised_outlines(make_scene([("thick_bar", 0.0, 0.0, 0.0)])) is None
+
+
 def test_failed_grasps_are_tallied_per_object_across_images():
     """tally_misses: a grasp that took none of its targets counts one miss for each; the count
     follows its object to where the failed grasp nudged it (ids differ between images), is
