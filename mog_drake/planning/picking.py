@@ -230,40 +230,45 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
     ``misses``: ((shape, x, y, count), ...) as of the last image; ``targets``: ((shape, x, y),
     ...), the objects the grasp executed since meant to take; ``scene``: the new image. An
     object is found again as the nearest one of its shape within MISS_RADIUS of where it
-    was. If every target is found again, the grasp took none of them: each one's count goes
-    up by one. Entries not found again are dropped (taken, or moved far).
+    was. If every target is found again, the grasp took none of them (`missed`): each one's
+    count goes up by one. Entries not found again are dropped (taken, or moved far).
 
     Returns the new misses (at the objects' new positions) and the ids, in ``scene``, of the
     objects grasped MAX_MISSES times in vain."""
-    objects = [(o.shape, float(o.x), float(o.y)) for o in scene.objects]
-
-    def found(entries) -> list[int | None]:
-        """Each (shape, x, y, ...) entry's object in ``scene``, or None; nearest first, an
-        object taken once."""
-        pairs = sorted(
-            (float(np.hypot(x - e[1], y - e[2])), k, i)
-            for k, e in enumerate(entries)
-            for i, (shape, x, y) in enumerate(objects)
-            if shape == e[0] and np.hypot(x - e[1], y - e[2]) <= MISS_RADIUS
-        )
-        out: list[int | None] = [None] * len(entries)
-        used = set()
-        for _, k, i in pairs:
-            if out[k] is None and i not in used:
-                out[k] = i
-                used.add(i)
-        return out
-
-    counts = {i: e[3] for e, i in zip(misses, found(misses), strict=True) if i is not None}
-    hits = found(targets)
-    if targets and all(i is not None for i in hits):
-        for i in hits:
+    counts = {i: e[3] for e, i in zip(misses, _found_again(misses, scene), strict=True) if i is not None}
+    if missed(targets, scene):
+        for i in _found_again(targets, scene):
             counts[i] = counts.get(i, 0) + 1
     new = tuple(
         (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), n)
         for i, n in sorted(counts.items())
     )
     return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
+
+
+def missed(targets: tuple, scene) -> bool:
+    """Whether the grasp meant to take ``targets`` ((shape, x, y), ...) took none of them:
+    each is found again in ``scene`` (`tally_misses`)."""
+    return bool(targets) and all(i is not None for i in _found_again(targets, scene))
+
+
+def _found_again(entries, scene) -> list[int | None]:
+    """Each (shape, x, y, ...) entry's object in ``scene``: the nearest of its shape within
+    MISS_RADIUS, nearest pairs first, each object taken once; None where there is none."""
+    objects = [(o.shape, float(o.x), float(o.y)) for o in scene.objects]
+    pairs = sorted(
+        (float(np.hypot(x - e[1], y - e[2])), k, i)
+        for k, e in enumerate(entries)
+        for i, (shape, x, y) in enumerate(objects)
+        if shape == e[0] and np.hypot(x - e[1], y - e[2]) <= MISS_RADIUS
+    )
+    out: list[int | None] = [None] * len(entries)
+    used = set()
+    for _, k, i in pairs:
+        if out[k] is None and i not in used:
+            out[k] = i
+            used.add(i)
+    return out
 
 
 def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:

@@ -177,7 +177,7 @@ class GraspPlanner:
         polys = scene.polygons()
 
         t = time.perf_counter()
-        cands, margin, final = self._candidates(polys, group, unrecognised_outlines(scene))
+        cands, margin, final = self._candidates(polys, group, jaw_obstacles(scene))
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None
@@ -247,10 +247,9 @@ class GraspPlanner:
 
     def _candidates(self, polys, group, blobs=None):
         """The candidates of ``group`` (Sec. 5.1) clear of the keep-out boxes and with their
-        open jaws off every unrecognised blob (``blobs``, a PolygonSet: what perception saw
-        but could not fit, a knocked-over or leaning prism, is under a jaw as surely as an
-        object); for a lone object with squeeze basins in use, only those whose basin is
-        wide enough, with each basin's width and final axis (else None, None)."""
+        open jaws off ``blobs`` (`jaw_obstacles`); for a lone object with squeeze basins in
+        use, only those whose basin is wide enough, with each basin's width and final axis
+        (else None, None)."""
         cfg = self.config
         cands = gen_grasp_cands(
             polys, group, self.gripper, cfg.n_positions, cfg.n_orientations, cfg.edge_orientations
@@ -290,11 +289,18 @@ class GraspPlanner:
             yield i
 
 
-def unrecognised_outlines(scene) -> PolygonSet | None:
-    """The outlines of the unrecognised blobs perception reported with ``scene``
-    (``meta["unrecognised"]``: each the convex hull of its points seen from above) as a
-    PolygonSet for the jaws' collision check; None when there are none."""
+def jaw_obstacles(scene) -> PolygonSet | None:
+    """What the open jaws must not come down on besides the scene's objects, from
+    ``scene.meta``, as a PolygonSet for the jaws' collision check (None when nothing):
+
+    * ``unrecognised``: the outlines of the blobs perception saw but could not fit (each the
+      convex hull of its points seen from above: a knocked-over or leaning prism is under a
+      jaw as surely as an object);
+    * ``missed_jaws``: the footprints of the jaws of recent grasps that took none of their
+      objects (`jaw_footprints`): what stopped or pushed them there may still be there,
+      seen or not, and a grasp shifted by a few millimetres would meet it again."""
     outlines = [np.asarray(b["vertices"], dtype=float) for b in scene.meta.get("unrecognised", ())]
+    outlines += [np.asarray(v, dtype=float) for v in scene.meta.get("missed_jaws", ())]
     outlines = [v for v in outlines if len(v) >= 3]
     if not outlines:
         return None
@@ -307,3 +313,20 @@ def unrecognised_outlines(scene) -> PolygonSet | None:
         radii=np.array([np.linalg.norm(v - c, axis=1).max() for v, c in zip(outlines, centers)]),
         d_fmin=np.zeros(len(outlines)),
     )
+
+
+def jaw_footprints(grasp, gripper: GripperGeometry | None = None) -> list[list[list[float]]]:
+    """The two open jaws' rectangles of ``grasp`` (x, y, theta) on the table, CCW corners."""
+    gripper = gripper or GripperGeometry()
+    x, y, th = (float(v) for v in grasp)
+    c, s = np.cos(th), np.sin(th)
+    out = []
+    for name in ("left_jaw", "right_jaw"):
+        x0, x1, y0, y1 = gripper.boxes()[name]
+        corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+        out.append(
+            np.column_stack(
+                [c * corners[:, 0] - s * corners[:, 1] + x, s * corners[:, 0] + c * corners[:, 1] + y]
+            ).tolist()
+        )
+    return out

@@ -71,6 +71,9 @@ class Decision(Immutable):
     # per object as of its image ((shape, x, y, count): see tally_misses).
     targets: tuple = ()
     misses: tuple = ()
+    # The last few grasps that took none of their objects (`picking.missed`), as of its image:
+    # their jaws' footprints are kept clear (`planner.jaw_obstacles`).
+    missed_grasps: tuple = ()
     # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
     # time), or "" (none ran).
     lookahead: str = ""

@@ -16,7 +16,8 @@ from mog_drake.config import LatencyConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
-from mog_drake.planning.picking import next_pick, tally_misses
+from mog_drake.planning.picking import missed, next_pick, tally_misses
+from mog_drake.planning.planner import jaw_footprints
 from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Decision, Perceived, Slot
 
@@ -29,6 +30,7 @@ class _Request:
     objects: int  # objects seen in its image
     scene: object  # the perceived scene
     misses: tuple  # failed grasps per object as of its image
+    missed_grasps: tuple  # as Decision.missed_grasps
     lookahead: str  # as Decision.lookahead
 
 
@@ -136,6 +138,7 @@ class PlannerSystem(LeafSystem):
             pushes=base.pushes + (d.status == "push"),
             targets=_targets(d, req.scene),
             misses=req.misses,
+            missed_grasps=req.missed_grasps,
             lookahead=used,
         )
         state.get_mutable_abstract_state(self._state).set_value(cur)
@@ -184,9 +187,19 @@ class PlannerSystem(LeafSystem):
             state.get_mutable_abstract_state(self._ahead).set_value(Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
+        # The jaws of the last grasps that took none of their objects stay off where they were.
+        gone = base.missed_grasps
+        last = base.decision
+        if last is not None and last.status == "grasp" and missed(base.targets, p.scene):
+            g = tuple(float(v) for v in last.grasp)
+            gone = gone if g in gone else (gone + (g,))[-self.REMEMBER :]
+        scene = p.scene
+        if gone:
+            jaws = [r for g in gone for r in jaw_footprints(g, self._planner.gripper)]
+            scene = dataclasses.replace(scene, meta={**scene.meta, "missed_jaws": jaws})
         job = self._worker.submit(
             functools.partial(self._plan, exclude=given_up),
-            p.scene,
+            scene,
             rng,
             base.recent,
             memory if self._spec.loop.remember_failures else None,
@@ -194,7 +207,7 @@ class PlannerSystem(LeafSystem):
             self._spec.pushes.max_per_table - base.pushes,
             t_request=t,
             counter=p.counter,
-            info=_Request(base, len(p.scene), p.scene, misses, used),
+            info=_Request(base, len(p.scene), scene, misses, gone, used),
         )
         state.get_mutable_abstract_state(self._job).set_value(Slot(job))
 

@@ -602,7 +602,7 @@ def test_the_planners_jaws_stay_off_what_perception_saw_but_could_not_fit():
     grasp the planner then asks about puts a jaw on it; without the blob the same grasp is
     asked first."""
     from mog_drake.geometry import GripperGeometry, jaw_collision_free
-    from mog_drake.planning.planner import unrecognised_outlines
+    from mog_drake.planning.planner import jaw_obstacles
 
     bar = make_scene([("thick_bar", 0.0, 0.0, 0.3)], group=[0])
     first = FakeVerifier()
@@ -613,12 +613,12 @@ def test_the_planners_jaws_stay_off_what_perception_saw_but_could_not_fit():
     cx, cy = x + at * np.cos(th), y + at * np.sin(th)
     square = [[cx - 0.01, cy - 0.01], [cx + 0.01, cy - 0.01], [cx + 0.01, cy + 0.01], [cx - 0.01, cy + 0.01]]
     bar.meta["unrecognised"] = [{"vertices": square, "top": 0.02}]
-    blobs = unrecognised_outlines(bar)
+    blobs = jaw_obstacles(bar)
     assert not jaw_collision_free(blobs, first.asked[0])[0]
     seen = FakeVerifier()
     GraspPlanner(seen, GraspConfig()).plan(bar, [0])
     assert seen.asked and jaw_collision_free(blobs, np.array(seen.asked)).all()
-    assert unrecognised_outlines(make_scene([("thick_bar", 0.0, 0.0, 0.0)])) is None
+    assert jaw_obstacles(make_scene([("thick_bar", 0.0, 0.0, 0.0)])) is None
 
 
 def test_failed_grasps_are_tallied_per_object_across_images():
