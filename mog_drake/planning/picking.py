@@ -236,8 +236,9 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
     Returns the new misses (at the objects' new positions) and the ids, in ``scene``, of the
     objects grasped MAX_MISSES times in vain."""
     counts = {i: e[3] for e, i in zip(misses, _found_again(misses, scene), strict=True) if i is not None}
-    if missed(targets, scene):
-        for i in _found_again(targets, scene):
+    hits = _found_again(targets, scene)
+    if targets and None not in hits:  # as `missed`
+        for i in hits:
             counts[i] = counts.get(i, 0) + 1
     new = tuple(
         (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), n)

@@ -35,7 +35,7 @@ from mog_drake.geometry import (
     rank_grasp_cands,
 )
 from mog_drake.geometry.gripper import clear_of_boxes
-from mog_drake.geometry.polygon import axis_gap, squeeze_basins
+from mog_drake.geometry.polygon import axis_gap, squeeze_basins, transform
 from mog_drake.planning.config import LARGE_GROUP, METHODS, GraspConfig
 from mog_drake.planning.protocol import GraspResult, Verifier
 
@@ -318,15 +318,8 @@ def jaw_obstacles(scene) -> PolygonSet | None:
 def jaw_footprints(grasp, gripper: GripperGeometry | None = None) -> list[list[list[float]]]:
     """The two open jaws' rectangles of ``grasp`` (x, y, theta) on the table, CCW corners."""
     gripper = gripper or GripperGeometry()
-    x, y, th = (float(v) for v in grasp)
-    c, s = np.cos(th), np.sin(th)
     out = []
     for name in ("left_jaw", "right_jaw"):
         x0, x1, y0, y1 = gripper.boxes()[name]
-        corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
-        out.append(
-            np.column_stack(
-                [c * corners[:, 0] - s * corners[:, 1] + x, s * corners[:, 0] + c * corners[:, 1] + y]
-            ).tolist()
-        )
+        out.append(transform([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], *(float(v) for v in grasp)).tolist())
     return out

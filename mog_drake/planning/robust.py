@@ -104,11 +104,7 @@ class RobustVerifier:
 
     def perturbed(self, scene, group, grasp, sample: int):
         """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""
-        d = self.offsets(scene, group, grasp, [sample])[0]
-        objects = [
-            SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + t) for o, (dx, dy, t) in zip(scene.objects, d)
-        ]
-        return replace(scene, objects=objects)
+        return _moved(scene, self.offsets(scene, group, grasp, [sample])[0])
 
     def clear(self, scene, group, grasp, offsets) -> np.ndarray:
         """(W,) for each world of ``offsets`` (`offsets`): the grasp's open jaws off every
@@ -139,7 +135,8 @@ class RobustVerifier:
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
         n_worlds = max(self.config.screen, len(self.variants))
-        clear = self.clear(scene, group, grasp, self.offsets(scene, group, grasp, range(n_worlds))).tolist()
+        offsets = self.offsets(scene, group, grasp, range(n_worlds))
+        clear = self.clear(scene, group, grasp, offsets).tolist()
         screened = len(clear[: self.config.screen]) - sum(clear[: self.config.screen])
         if screened or sum(clear[: len(self.variants)]) < self.required:
             of = self.config.screen if screened else len(self.variants)
@@ -159,7 +156,7 @@ class RobustVerifier:
             if not clear[k]:
                 lifted, r = set(), GraspResult(False)  # screened: the jaws land on an object
             else:
-                r = variant.check(self.perturbed(scene, group, grasp, k), group, grasp)
+                r = variant.check(_moved(scene, offsets[k]), group, grasp)
             sim_time, wall_time = sim_time + r.sim_time, wall_time + r.wall_time
             lifted &= set(r.lifted)
             held += bool(r.success)
@@ -175,3 +172,12 @@ class RobustVerifier:
             wall_time=wall_time,
             error=error,
         )
+
+
+def _moved(scene, offsets):
+    """``scene`` with each object moved by its row (dx, dy, dtheta) of ``offsets``."""
+    objects = [
+        SceneObject(o.shape, o.x + dx, o.y + dy, o.theta + t)
+        for o, (dx, dy, t) in zip(scene.objects, offsets)
+    ]
+    return replace(scene, objects=objects)

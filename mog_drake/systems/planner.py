@@ -125,7 +125,7 @@ class PlannerSystem(LeafSystem):
             counter=job.counter,
             decision=d,
             objects_seen=req.objects,
-            blobs_seen=int(req.scene.meta.get("unrecognised_blobs", 0)) if req.scene is not None else 0,
+            blobs_seen=int(req.scene.meta.get("unrecognised_blobs", 0)),
             recent=recent[-self.REMEMBER :],
             failures=d.failures,
             unrecognised_grasps=blob_grasps,
