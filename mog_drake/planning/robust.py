@@ -24,6 +24,10 @@ on physics checks: where uncertainty screens a group's best candidates, the grou
 and a smaller one is tried. Screening every candidate in the planner instead, the cap left
 to physics, took larger groups that failed more (docs/experiments.md, v33).
 
+With ``open_margin`` the screen's jaws are those the grasp opens (`RobustVerifier.jaws`): only
+as wide as its group needs plus the margin a side, so a neighbour beyond them no longer counts,
+and a group object the moved poses put under them does.
+
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
 person.
@@ -37,8 +41,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from mog_drake.geometry import GripperGeometry
 from mog_drake.geometry.conditions import PolygonSet, jaws_clear
 from mog_drake.planning.config import RobustConfig
+from mog_drake.planning.planner import fitted_opening
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import SceneObject
 
@@ -130,7 +136,16 @@ class RobustVerifier:
             radii=np.tile([shape.radius for shape in shapes], W),
             d_fmin=np.tile([shape.d_fmin for shape in shapes], W),
         )
-        return jaws_clear(polys, W, group, grasp, getattr(self.base, "gripper", None))
+        return jaws_clear(polys, W, group, grasp, self.jaws(scene, group, grasp))
+
+    def jaws(self, scene, group, grasp) -> GripperGeometry:
+        """The gripper as it opens for ``grasp``: fully, or with ``open_margin`` only as wide as
+        its group needs (`fitted_opening`)."""
+        gripper = getattr(self.base, "gripper", None) or GripperGeometry()
+        if not self.config.open_margin:
+            return gripper
+        inner = fitted_opening(scene, group, grasp, gripper, self.config.open_margin)
+        return replace(gripper, opening=inner + gripper.plate_thickness)
 
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()

@@ -249,6 +249,8 @@ class ControllerSystem(LeafSystem):
             self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e=e)
             return
         new.mode, new.t_mode, new.unreachable, new.force_zero = "approach", t, 0, None
+        if d.opening:  # the jaws narrow to the planner's opening on the way
+            new.gripper = d.opening
         new.attempts.append(
             {
                 "start": t,
@@ -269,6 +271,7 @@ class ControllerSystem(LeafSystem):
                 **({"lone": dec.lone} if dec.lone else {}),
                 # Found by the last resort: a robust planner's screen and samples relaxed.
                 **({"last_resort": True} if dec.last_resort else {}),
+                **({"opening": round(d.opening, 4)} if d.opening else {}),
             }
         )
 

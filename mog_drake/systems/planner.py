@@ -17,7 +17,7 @@ from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
 from mog_drake.planning.picking import missed, next_pick, tally_misses
-from mog_drake.planning.planner import jaw_footprints
+from mog_drake.planning.planner import fitted_opening, jaw_footprints
 from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Decision, Perceived, Slot
 
@@ -140,6 +140,7 @@ class PlannerSystem(LeafSystem):
             misses=req.misses,
             missed_grasps=req.missed_grasps,
             lookahead=used,
+            opening=self._opening(d, req.scene),
         )
         state.get_mutable_abstract_state(self._state).set_value(cur)
         state.get_mutable_abstract_state(self._job).set_value(Slot())
@@ -148,6 +149,18 @@ class PlannerSystem(LeafSystem):
         chained = d.status == "push" and d.grasp is not None and d.after is not None
         if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
             self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state=state)
+
+    def _opening(self, d: PickDecision, scene) -> float:
+        """The inner opening for ``d``'s grasp (`fitted_opening`) with ``open_margin``, on the
+        objects it means to take; 0 (fully open) without it, for a blob and for push-mog's
+        grasps."""
+        margin = self._spec.robust.open_margin
+        if not margin or d.status != "grasp" or d.unrecognised or d.grasp is None:
+            return 0.0
+        if d.last_resort:  # found without the screen, which alone checks the fitted jaws
+            return 0.0
+        objects = sorted(set(d.group) | set(d.expected))
+        return fitted_opening(scene, objects, d.grasp, self._planner.gripper, margin)
 
     def _look_ahead(
         self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, *, state

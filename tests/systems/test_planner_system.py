@@ -65,3 +65,44 @@ def test_after_a_grasp_that_took_nothing_the_jaws_stay_off_where_it_put_them():
     assert jaw_collision_free(missed_at, grasps[1])[0]
     beside = planner.plan(scene, [0], avoid=[grasps[0]]).grasp  # the recent grasps avoided, no more
     assert not jaw_collision_free(missed_at, beside)[0]
+
+
+def test_with_open_margin_the_decision_carries_the_jaws_fitted_opening():
+    """planner.robust.open_margin: the decision's opening is its objects' extent about the
+    grasp point plus the margin each side (`fitted_opening`); without the margin it is 0
+    (fully open)."""
+    from dataclasses import replace
+
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    from mog_drake.config import LatencyConfig
+    from mog_drake.planning.config import PlannerSpec, RobustConfig
+    from mog_drake.planning.planner import GraspPlanner, fitted_opening
+    from mog_drake.planning.protocol import GraspResult
+    from mog_drake.scenario import Scenario
+    from mog_drake.scenes import Scene, SceneObject, default_library
+    from mog_drake.systems.messages import Perceived
+    from mog_drake.systems.planner import PlannerSystem
+
+    class LiftsAnything:
+        def check(self, scene, group, grasp):
+            return GraspResult(True, lifted=list(group))
+
+    scene = Scene([SceneObject("thick_bar", 0.0, 0.0, 0.3)], default_library())
+    openings = []
+    for margin in (0.012, 0.0):
+        spec = replace(PlannerSpec(), robust=RobustConfig(screen=8 if margin else 0, open_margin=margin))
+        planner = GraspPlanner(LiftsAnything(), Scenario().planner.grasp)
+        p = PlannerSystem(planner, spec, latency=LatencyConfig("fixed", 0.0, 0.0))
+        ctx = p.CreateDefaultContext()
+        p.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(0, scene)))
+        Simulator(p, ctx).AdvanceTo(0.02)
+        out = p.GetOutputPort("decision").Eval(ctx)
+        assert out.decision.status == "grasp"
+        openings.append(out.opening)
+        if margin:
+            want = fitted_opening(scene, [0], out.decision.grasp, planner.gripper, margin)
+            assert out.opening == want and 0.024 < want < planner.gripper.w_g
+        p.shutdown()
+    assert openings[1] == 0.0
