@@ -17,7 +17,7 @@ from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
 from mog_drake.planning.picking import missed, next_pick, tally_misses
-from mog_drake.planning.planner import fitted_opening, jaw_footprints
+from mog_drake.planning.planner import jaw_footprints
 from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Decision, Perceived, Slot
 
@@ -151,16 +151,17 @@ class PlannerSystem(LeafSystem):
             self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state=state)
 
     def _opening(self, d: PickDecision, scene) -> float:
-        """The inner opening for ``d``'s grasp (`fitted_opening`) with ``open_margin``, on the
-        objects it means to take; 0 (fully open) without it, for a blob and for push-mog's
-        grasps."""
-        margin = self._spec.robust.open_margin
-        if not margin or d.status != "grasp" or d.unrecognised or d.grasp is None:
+        """The inner opening for ``d``'s grasp with ``open_margin``: the robust check's jaws for
+        it at this image's poses (`RobustVerifier.jaws`); 0 (fully open) when those are fully
+        open, without the margin, for a blob, for push-mog's grasps and for the last resort's
+        (found without the screen)."""
+        jaws = getattr(self._planner.verifier, "jaws", None)
+        if not self._spec.robust.open_margin or jaws is None or d.last_resort:
             return 0.0
-        if d.last_resort:  # found without the screen, which alone checks the fitted jaws
+        if d.status != "grasp" or d.unrecognised or d.grasp is None:
             return 0.0
-        objects = sorted(set(d.group) | set(d.expected))
-        return fitted_opening(scene, objects, d.grasp, self._planner.gripper, margin)
+        inner = jaws(scene, d.group, d.grasp).w_g
+        return 0.0 if inner >= self._planner.gripper.w_g else inner
 
     def _look_ahead(
         self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, *, state

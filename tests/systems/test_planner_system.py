@@ -67,10 +67,10 @@ def test_after_a_grasp_that_took_nothing_the_jaws_stay_off_where_it_put_them():
     assert not jaw_collision_free(missed_at, beside)[0]
 
 
-def test_with_open_margin_the_decision_carries_the_jaws_fitted_opening():
-    """planner.robust.open_margin: the decision's opening is its objects' extent about the
-    grasp point plus the margin each side (`fitted_opening`); without the margin it is 0
-    (fully open)."""
+def test_with_open_margin_the_decision_carries_the_robust_checks_jaws():
+    """planner.robust.open_margin: the decision's opening is the inner opening of the robust
+    check's jaws for its grasp (`RobustVerifier.jaws`: a lone bar, fitted with one margin a
+    side); without the margin it is 0 (fully open)."""
     from dataclasses import replace
 
     from pydrake.common.value import AbstractValue
@@ -80,6 +80,7 @@ def test_with_open_margin_the_decision_carries_the_jaws_fitted_opening():
     from mog_drake.planning.config import PlannerSpec, RobustConfig
     from mog_drake.planning.planner import GraspPlanner, fitted_opening
     from mog_drake.planning.protocol import GraspResult
+    from mog_drake.planning.robust import RobustVerifier
     from mog_drake.scenario import Scenario
     from mog_drake.scenes import Scene, SceneObject, default_library
     from mog_drake.systems.messages import Perceived
@@ -92,17 +93,19 @@ def test_with_open_margin_the_decision_carries_the_jaws_fitted_opening():
     scene = Scene([SceneObject("thick_bar", 0.0, 0.0, 0.3)], default_library())
     openings = []
     for margin in (0.012, 0.0):
-        spec = replace(PlannerSpec(), robust=RobustConfig(screen=8 if margin else 0, open_margin=margin))
-        planner = GraspPlanner(LiftsAnything(), Scenario().planner.grasp)
+        robust = RobustConfig(screen=8, pose_sigma=0.003, yaw_sigma_deg=3, open_margin=margin)
+        spec = replace(PlannerSpec(), robust=robust)
+        planner = GraspPlanner(RobustVerifier(LiftsAnything(), [], robust), Scenario().planner.grasp)
         p = PlannerSystem(planner, spec, latency=LatencyConfig("fixed", 0.0, 0.0))
         ctx = p.CreateDefaultContext()
         p.GetInputPort("scene").FixValue(ctx, AbstractValue.Make(Perceived(0, scene)))
         Simulator(p, ctx).AdvanceTo(0.02)
         out = p.GetOutputPort("decision").Eval(ctx)
-        assert out.decision.status == "grasp"
+        assert out.decision.status == "grasp" and not out.decision.last_resort
         openings.append(out.opening)
         if margin:
-            want = fitted_opening(scene, [0], out.decision.grasp, planner.gripper, margin)
-            assert out.opening == want and 0.024 < want < planner.gripper.w_g
+            assert out.opening == planner.verifier.jaws(scene, out.decision.group, out.decision.grasp).w_g
+            assert out.opening == fitted_opening(scene, [0], out.decision.grasp, planner.gripper, margin)
+            assert 0.024 < out.opening < planner.gripper.w_g
         p.shutdown()
     assert openings[1] == 0.0
