@@ -154,6 +154,7 @@ class PickDecision:
     # expected then index the blobs, not the scene's objects).
     unrecognised: bool = False
     last_resort: bool = False  # found by the last resort (see next_pick)
+    relaxed: bool = False  # by its relaxed screen (planner.robust.relaxed_share)
     groups_tried: int = 0
     partial: bool = False  # the grasp lifted part of a larger group it was planned for
     expected: tuple[int, ...] = ()  # objects the physics check lifted with this grasp

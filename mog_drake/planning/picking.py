@@ -22,7 +22,7 @@ Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`
   within its reach lies where it did; its remembered plan, partial lift included, stands in.
 * last resort: when no group has a grasp within the planner's cap on physics checks, each is
   planned again with up to LAST_RESORT_CHECKS more (LAST_RESORT_TOTAL in all) before the
-  decision gives up ("no_grasp").
+  decision gives up ("no_grasp"); a robust planner's check relaxed (`_last_resort`).
 * unrecognised blobs: once no library object is left, what perception could not recognise
   (a prism knocked onto its side) is planned as prisms of its outline and top height
   (`unrecognised_scene`); without a grasp the status is "unrecognised".
@@ -276,35 +276,45 @@ def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoi
     """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
     skipping the candidates already simulated (a remembered plan simulated none now); takes
     the first grasp found, or with ``partial_lifts`` the first partial lift. A robust check
-    (`planning.robust`) is relaxed to its nominal one here."""
-    deeper = copy.copy(planner)
-    deeper.verifier = getattr(planner.verifier, "nominal", planner.verifier)
-    spent = 0
-    for first in list(decision.plans):
-        if spent >= LAST_RESORT_TOTAL:
-            return
-        deeper.config = replace(
-            planner.config,
-            max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent),
-            max_physics_large=None,
-        )
-        res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=first.tested_indices)
-        decision.plans.append(res)
-        decision.groups_tried += 1
-        decision.physics_checks += res.tested
-        spent += res.tested
-        if res.found:
-            decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
-            decision.expected = tuple(res.result.lifted)
-            decision.last_resort = True
-            return
-        if partial_lifts and res.best_lift is not None:  # a verified grasp of part of the group
-            decision.status, decision.grasp, decision.group = (
-                "grasp",
-                res.best_lift[0],
-                tuple(res.best_lift[1]),
+    (`planning.robust`) is relaxed to its nominal one here; with ``relaxed_share``, first to
+    its screen at that share (`RobustVerifier.relaxed`, each pass its own budget; the
+    candidates its full screen refused are screened again)."""
+    tried = list(decision.plans)
+    relaxed = getattr(planner.verifier, "relaxed", None)
+    first_pass = relaxed() if relaxed is not None else None
+    passes = [(first_pass, True)] if first_pass is not None else []
+    passes.append((getattr(planner.verifier, "nominal", planner.verifier), False))
+    for verifier, is_relaxed in passes:
+        deeper = copy.copy(planner)
+        deeper.verifier = verifier
+        spent = 0
+        for first in tried:
+            if spent >= LAST_RESORT_TOTAL:
+                break
+            deeper.config = replace(
+                planner.config,
+                max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent),
+                max_physics_large=None,
             )
-            decision.partial, decision.expected, decision.last_resort = True, tuple(res.best_lift[1]), True
+            skip = () if is_relaxed else first.tested_indices
+            res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
+            decision.plans.append(res)
+            decision.groups_tried += 1
+            decision.physics_checks += res.tested
+            spent += res.tested
+            if res.found:
+                decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
+                decision.expected = tuple(res.result.lifted)
+            elif partial_lifts and res.best_lift is not None:  # a verified grasp of part of the group
+                decision.status, decision.grasp, decision.group = (
+                    "grasp",
+                    res.best_lift[0],
+                    tuple(res.best_lift[1]),
+                )
+                decision.partial, decision.expected = True, tuple(res.best_lift[1])
+            else:
+                continue
+            decision.last_resort, decision.relaxed = True, is_relaxed
             return
 
 

@@ -35,6 +35,7 @@ person.
 
 from __future__ import annotations
 
+import math
 import time
 import zlib
 from dataclasses import replace
@@ -78,11 +79,22 @@ class RobustVerifier:
     def __init__(self, base, variants, config: RobustConfig):
         self.base, self.variants, self.config = base, list(variants), config
         self.required = config.required or config.samples
+        self.clear_needed = config.screen  # screen worlds that must keep the jaws clear
         if len(self.variants) != config.samples:
             raise ValueError(f"{config.samples} samples need as many variants, got {len(self.variants)}")
 
     def __getattr__(self, name):  # push(), meshcat, last_build_time ...: the nominal check's
         return getattr(self.base, name)
+
+    def relaxed(self) -> RobustVerifier | None:
+        """The last resort's first check (``relaxed_share``): the nominal check after a screen
+        that ``relaxed_share`` of the worlds pass, the jaws fully open; None without it."""
+        cfg = self.config
+        if not cfg.relaxed_share or not cfg.screen:
+            return None
+        out = RobustVerifier(self.base, [], replace(cfg, samples=0, required=0, open_margin=0.0))
+        out.clear_needed = math.ceil(cfg.relaxed_share * cfg.screen)
+        return out
 
     @property
     def nominal(self):
@@ -166,10 +178,11 @@ class RobustVerifier:
         n_worlds = max(self.config.screen, len(self.variants))
         offsets = self.offsets(scene, group, grasp, range(n_worlds))
         clear = self.clear(scene, group, grasp, offsets, self.jaws(scene, group, grasp, offsets)).tolist()
-        screened = len(clear[: self.config.screen]) - sum(clear[: self.config.screen])
-        if screened or sum(clear[: len(self.variants)]) < self.required:
-            of = self.config.screen if screened else len(self.variants)
-            n = screened or of - sum(clear[:of])
+        screened = self.config.screen - sum(clear[: self.config.screen])
+        short = self.config.screen - screened < self.clear_needed
+        if short or sum(clear[: len(self.variants)]) < self.required:
+            of = self.config.screen if short else len(self.variants)
+            n = screened if short else of - sum(clear[:of])
             return GraspResult(
                 False,
                 wall_time=time.perf_counter() - t0,

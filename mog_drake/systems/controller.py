@@ -271,6 +271,7 @@ class ControllerSystem(LeafSystem):
                 **({"lone": dec.lone} if dec.lone else {}),
                 # Found by the last resort: a robust planner's screen and samples relaxed.
                 **({"last_resort": True} if dec.last_resort else {}),
+                **({"relaxed": True} if dec.relaxed else {}),
                 **({"opening": round(d.opening, 4)} if d.opening else {}),
             }
         )

@@ -409,3 +409,36 @@ def test_fitted_jaws_open_only_as_wide_as_the_screen_allows_and_keep_off_the_nei
         RobustConfig(open_margin=0.012).check()
     with pytest.raises(MogError, match="open_margin must be in"):
         RobustConfig(screen=8, open_margin=0.05).check()
+
+
+def test_the_last_resort_first_takes_a_grasp_most_screen_worlds_keep_clear():
+    """``relaxed_share``: a lone bar 4 mm of pose error (8 worlds) keeps out of the jaws in
+    some worlds and not all, so no robust grasp. The last resort's first check is the screen
+    at the share (the nominal check after it): a share at the bar's count of clear worlds
+    passes, one world more refuses. In a decision, the relaxed pass finds the grasp before the
+    nominal check alone; without the share the nominal check alone finds it."""
+    from mog_drake.planning.config import PlannerSpec
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
+
+    grasp = np.array([0.0, 0.0, np.pi / 2])
+    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
+    cfg = RobustConfig(screen=8, pose_sigma=0.004, yaw_sigma_deg=4)
+    strict = RobustVerifier(_Lifts(), [], cfg)
+    n = int(strict.clear(near, [0], grasp, strict.offsets(near, [0], grasp, range(8))).sum())
+    assert 0 < n < 8 and not strict.check(near, [0], grasp).success and strict.relaxed() is None
+    at = RobustVerifier(_Lifts(), [], replace(cfg, relaxed_share=(n - 0.5) / 8)).relaxed()
+    assert at.clear_needed == n and at.check(near, [0], grasp).success and at.base.calls == 1
+    above = RobustVerifier(_Lifts(), [], replace(cfg, relaxed_share=(n + 0.5) / 8)).relaxed()
+    assert not above.check(near, [0], grasp).success and above.base.calls == 0
+
+    lone = make_scene([("thick_bar", 0.0, 0.0, 0.3)])
+    wide = RobustConfig(screen=8, pose_sigma=0.02, yaw_sigma_deg=10)  # no grasp clear in all 8
+    for share, relaxed in ((0.1, True), (0.0, False)):
+        planner = GraspPlanner(
+            RobustVerifier(_Lifts(), [], replace(wide, relaxed_share=share)), GraspConfig("gp", max_physics=2)
+        )
+        d = next_pick(lone, planner, PlannerSpec())
+        assert d.status == "grasp" and d.last_resort and d.relaxed == relaxed
+    with pytest.raises(MogError, match="planner.robust.relaxed_share must be in"):
+        RobustConfig(screen=8, relaxed_share=1.0).check()
