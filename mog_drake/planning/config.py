@@ -205,14 +205,9 @@ class RobustConfig:
     friction_spread: float = 0.3  # each friction coefficient x U(1 - s, 1 + s)
     mass_spread: float = 0.2  # each object's mass x U(1 - s, 1 + s)
     seed: int = 0
-    # Above 0 (m), the jaws open only as wide as the grasp's objects need plus this margin on
-    # each side (`planner.fitted_opening`), not fully: the jaws land inside the gap the
-    # planner cleared, away from the neighbours beyond it. The screen's worlds are checked
-    # with those jaws, so it keeps them off the group too; it needs a screen.
-    open_margin: float = 0.0
     # Above 0, where no robust grasp is left the last resort (`picking.next_pick`) first takes
-    # a grasp whose jaws this share of the screen's worlds keeps clear (the nominal check
-    # alone, the jaws fully open), before one the nominal check alone passes.
+    # a grasp whose open jaws this share of the screen's worlds keeps clear (the nominal check
+    # after the screen), before one the nominal check alone passes.
     relaxed_share: float = 0.0
 
     def check(self) -> None:
@@ -228,12 +223,8 @@ class RobustConfig:
                 raise MogError(f"planner.robust.{key} must be in [0, 1), got {getattr(self, key)}")
         if not 0 <= self.seed <= MAX_SEED:
             raise MogError(f"planner.robust.seed must be a whole number >= 0, got {self.seed}")
-        if not 0 <= self.open_margin <= 0.03:
-            raise MogError(f"planner.robust.open_margin must be in [0, 0.03] m, got {self.open_margin}")
         if not 0 <= self.relaxed_share < 1:
             raise MogError(f"planner.robust.relaxed_share must be in [0, 1), got {self.relaxed_share}")
-        if self.open_margin and not self.screen:
-            raise MogError("planner.robust.open_margin needs a screen (planner.robust.screen above 0)")
 
 
 @dataclass

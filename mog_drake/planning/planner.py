@@ -323,17 +323,3 @@ def jaw_footprints(grasp, gripper: GripperGeometry | None = None) -> list[list[l
         x0, x1, y0, y1 = gripper.boxes()[name]
         out.append(transform([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], *(float(v) for v in grasp)).tolist())
     return out
-
-
-def fitted_opening(scene, objects, grasp, gripper: GripperGeometry, margin: float) -> float:
-    """The inner jaw opening (m) that clears ``objects`` of ``scene`` by ``margin`` on each
-    side along ``grasp``'s closing axis: the jaws close symmetrically about the grasp point,
-    so twice the farthest vertex from it along that axis, plus the margins; never wider than
-    the gripper opens (its ``w_g``)."""
-    x, y, theta = (float(v) for v in grasp)
-    c, s = np.cos(theta), np.sin(theta)
-    reach = max(
-        (float(np.abs((p[:, 0] - x) * c + (p[:, 1] - y) * s).max()) for p in map(scene.polygon, objects)),
-        default=gripper.w_g / 2,
-    )
-    return min(gripper.w_g, 2 * (reach + margin))

@@ -24,10 +24,6 @@ on physics checks: where uncertainty screens a group's best candidates, the grou
 and a smaller one is tried. Screening every candidate in the planner instead, the cap left
 to physics, took larger groups that failed more (docs/experiments.md, v33).
 
-With ``open_margin`` the screen's jaws are those the grasp opens (`RobustVerifier.jaws`): as
-wide as its group needs plus one or two margins a side, the narrowest whose jaws every screen
-world keeps clear, else fully open; a neighbour beyond the narrowed jaws no longer counts.
-
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
 person.
@@ -42,10 +38,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from mog_drake.geometry import GripperGeometry
 from mog_drake.geometry.conditions import PolygonSet, jaws_clear
 from mog_drake.planning.config import RobustConfig
-from mog_drake.planning.planner import fitted_opening
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.scenes import SceneObject
 
@@ -88,11 +82,11 @@ class RobustVerifier:
 
     def relaxed(self) -> RobustVerifier | None:
         """The last resort's first check (``relaxed_share``): the nominal check after a screen
-        that ``relaxed_share`` of the worlds pass, the jaws fully open; None without it."""
+        that ``relaxed_share`` of the worlds pass; None without it."""
         cfg = self.config
         if not cfg.relaxed_share or not cfg.screen:
             return None
-        out = RobustVerifier(self.base, [], replace(cfg, samples=0, required=0, open_margin=0.0))
+        out = RobustVerifier(self.base, [], replace(cfg, samples=0, required=0))
         out.clear_needed = math.ceil(cfg.relaxed_share * cfg.screen)
         return out
 
@@ -124,10 +118,10 @@ class RobustVerifier:
         """``scene`` with its poses moved for the ``sample``-th check of ``grasp``."""
         return _moved(scene, self.offsets(scene, group, grasp, [sample])[0])
 
-    def clear(self, scene, group, grasp, offsets, gripper: GripperGeometry | None = None) -> np.ndarray:
-        """(W,) for each world of ``offsets`` (`offsets`): the grasp's open jaws (``gripper``'s;
-        fully open by default) off every object and each group object reaching between them
-        (the conditions' collision and area checks at its poses), all worlds at once."""
+    def clear(self, scene, group, grasp, offsets) -> np.ndarray:
+        """(W,) for each world of ``offsets`` (`offsets`): the grasp's open jaws off every
+        object and each group object reaching between them (the conditions' collision and
+        area checks at its poses), all worlds at once."""
         shapes = [scene.shape(i) for i in range(len(scene))]
         W, K = len(offsets), len(shapes)
         n_max = max((s.sides for s in shapes), default=3)
@@ -148,36 +142,13 @@ class RobustVerifier:
             radii=np.tile([shape.radius for shape in shapes], W),
             d_fmin=np.tile([shape.d_fmin for shape in shapes], W),
         )
-        return jaws_clear(polys, W, group, grasp, gripper or self.gripper)
-
-    @property
-    def gripper(self) -> GripperGeometry:
-        return getattr(self.base, "gripper", None) or GripperGeometry()
-
-    def jaws(self, scene, group, grasp, offsets=None) -> GripperGeometry:
-        """The gripper as it opens for ``grasp``: with ``open_margin``, the narrowest opening
-        of its group's extent plus one, then two margins a side (`fitted_opening`) whose
-        jaws are clear in every screen world; else (or without it) fully open."""
-        full = self.gripper
-        if not self.config.open_margin or not self.config.screen:
-            return full
-        if offsets is None:
-            offsets = self.offsets(scene, group, grasp, range(self.config.screen))
-        worlds = offsets[: self.config.screen]
-        for k in (1, 2):
-            inner = fitted_opening(scene, group, grasp, full, k * self.config.open_margin)
-            if inner >= full.w_g:
-                break
-            narrow = replace(full, opening=inner + full.plate_thickness)
-            if self.clear(scene, group, grasp, worlds, narrow).all():
-                return narrow
-        return full
+        return jaws_clear(polys, W, group, grasp, getattr(self.base, "gripper", None))
 
     def check(self, scene, group, grasp) -> GraspResult:
         t0 = time.perf_counter()
         n_worlds = max(self.config.screen, len(self.variants))
         offsets = self.offsets(scene, group, grasp, range(n_worlds))
-        clear = self.clear(scene, group, grasp, offsets, self.jaws(scene, group, grasp, offsets)).tolist()
+        clear = self.clear(scene, group, grasp, offsets).tolist()
         screened = self.config.screen - sum(clear[: self.config.screen])
         short = self.config.screen - screened < self.clear_needed
         if short or sum(clear[: len(self.variants)]) < self.required:

@@ -249,8 +249,6 @@ class ControllerSystem(LeafSystem):
             self._skip(new, s, d, t, "grasp", dec.grasp.tolist(), e=e)
             return
         new.mode, new.t_mode, new.unreachable, new.force_zero = "approach", t, 0, None
-        if d.opening:  # the jaws narrow to the planner's opening on the way
-            new.gripper = d.opening
         new.attempts.append(
             {
                 "start": t,
@@ -272,7 +270,6 @@ class ControllerSystem(LeafSystem):
                 # Found by the last resort: a robust planner's screen and samples relaxed.
                 **({"last_resort": True} if dec.last_resort else {}),
                 **({"relaxed": True} if dec.relaxed else {}),
-                **({"opening": round(d.opening, 4)} if d.opening else {}),
             }
         )
 

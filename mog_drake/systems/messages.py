@@ -77,9 +77,6 @@ class Decision(Immutable):
     # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
     # time), or "" (none ran).
     lookahead: str = ""
-    # The inner jaw opening (m) for this decision's grasp (planner.robust.open_margin); 0: open
-    # fully.
-    opening: float = 0.0
 
 
 @dataclass

@@ -140,7 +140,6 @@ class PlannerSystem(LeafSystem):
             misses=req.misses,
             missed_grasps=req.missed_grasps,
             lookahead=used,
-            opening=self._opening(d, req.scene),
         )
         state.get_mutable_abstract_state(self._state).set_value(cur)
         state.get_mutable_abstract_state(self._job).set_value(Slot())
@@ -149,19 +148,6 @@ class PlannerSystem(LeafSystem):
         chained = d.status == "push" and d.grasp is not None and d.after is not None
         if self._lookahead and (d.status == "grasp" or chained) and not d.unrecognised:
             self._look_ahead(d.after if chained else req.scene, d, rng, cur, job.counter, t, state=state)
-
-    def _opening(self, d: PickDecision, scene) -> float:
-        """The inner opening for ``d``'s grasp with ``open_margin``: the robust check's jaws for
-        it at this image's poses (`RobustVerifier.jaws`); 0 (fully open) when those are fully
-        open, without the margin, for a blob, for push-mog's grasps and for the last resort's
-        (found without the screen)."""
-        jaws = getattr(self._planner.verifier, "jaws", None)
-        if not self._spec.robust.open_margin or jaws is None or d.last_resort:
-            return 0.0
-        if d.status != "grasp" or d.unrecognised or d.grasp is None:
-            return 0.0
-        inner = jaws(scene, d.group, d.grasp).w_g
-        return 0.0 if inner >= self._planner.gripper.w_g else inner
 
     def _look_ahead(
         self, table, d: PickDecision, rng, cur: Decision, counter: int, t: float, *, state

@@ -373,44 +373,6 @@ def test_the_screen_decides_all_its_worlds_at_once_as_the_conditions_do_on_each(
     assert 0 < clear < 320  # both verdicts met
 
 
-def test_fitted_jaws_open_only_as_wide_as_the_screen_allows_and_keep_off_the_neighbours():
-    """``open_margin``: the jaws open to the group's extent along the closing axis plus the
-    margin a side, symmetric about the grasp point, never wider than the gripper
-    (`fitted_opening`). A neighbour 45 mm off that the fully open jaws land on in some of 8
-    worlds (4 mm of pose error) is clear of jaws fitted with 12 mm a side in all, and the
-    grasp passes. With a 1 mm margin, the jaws one and two margins a side land on the grasped
-    bar in some world, so the jaws open fully, land on the neighbour, and the grasp is refused."""
-    from mog_drake.geometry import GripperGeometry
-    from mog_drake.planning.planner import fitted_opening
-
-    grasp = np.array([0.0, 0.0, np.pi / 2])
-    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.055, 0.0)])
-    width = float(np.ptp(near.polygon(0)[:, 1]))
-    g = GripperGeometry()
-    assert fitted_opening(near, [0], grasp, g, 0.012) == pytest.approx(width + 0.024)
-    assert fitted_opening(near, [0, 1], grasp, g, 0.012) == pytest.approx(g.w_g)  # capped
-    length = float(np.ptp(near.polygon(0)[:, 0]))
-    assert fitted_opening(near, [0], [0.01, 0.0, 0.0], g, 0.0) == pytest.approx(length + 0.02)  # off centre
-    cfg = RobustConfig(screen=8, pose_sigma=0.004, yaw_sigma_deg=4)
-    plain = RobustVerifier(_Lifts(), [], cfg)
-    worlds = plain.offsets(near, [0], grasp, range(8))
-    assert plain.jaws(near, [0], grasp) == g and not plain.clear(near, [0], grasp, worlds).all()
-    assert not plain.check(near, [0], grasp).success
-    fitted = RobustVerifier(_Lifts(), [], replace(cfg, open_margin=0.012))
-    jaws = fitted.jaws(near, [0], grasp)
-    assert jaws.w_g == pytest.approx(width + 0.024) and fitted.clear(near, [0], grasp, worlds, jaws).all()
-    assert fitted.check(near, [0], grasp).success
-    tight = RobustVerifier(_Lifts(), [], replace(cfg, open_margin=0.001))
-    for k in (1, 2):
-        narrow = replace(g, opening=width + 2 * k * 0.001 + g.plate_thickness)
-        assert not tight.clear(near, [0], grasp, worlds, narrow).all()
-    assert tight.jaws(near, [0], grasp) == g and not tight.check(near, [0], grasp).success
-    with pytest.raises(MogError, match="open_margin needs a screen"):
-        RobustConfig(open_margin=0.012).check()
-    with pytest.raises(MogError, match="open_margin must be in"):
-        RobustConfig(screen=8, open_margin=0.05).check()
-
-
 def test_the_last_resort_first_takes_a_grasp_most_screen_worlds_keep_clear():
     """``relaxed_share``: a lone bar 4 mm of pose error (8 worlds) keeps out of the jaws in
     some worlds and not all, so no robust grasp. The last resort's first check is the screen

@@ -190,22 +190,3 @@ def test_drop_pose_above_the_bin_retries_other_seeds_and_yaws(monkeypatch):
     monkeypatch.setattr(m, "ik", lambda *a, **kw: (_ for _ in ()).throw(MogError("no")))
     with pytest.raises(MogError, match="drop pose above the bin"):
         m.bin_ik(p, 0.4, (np.array(sc.robot.home),))
-
-
-def test_the_jaws_narrow_to_the_decisions_opening_on_the_way_to_the_grasp():
-    """A decision with an opening (planner.robust.open_margin): the jaws, open after the last
-    attempt, go to it as the arm starts for the grasp, and close from there; the attempt
-    records it. Without one they stay fully open."""
-    from mog_drake.planning.decision import PickDecision
-    from mog_drake.systems.planner import Decision
-
-    for opening, expect in ((0.042, 0.042), (0.0, OPEN_WIDTH)):
-        c, ctx, decision, sim = _controller_with_fixed_inputs()
-        sim.AdvanceTo(0.5)
-        decision.GetMutableData().set_value(
-            Decision(1, PickDecision("grasp", np.array([0.05, 0.0, 0.3]), (0,)), 5, opening=opening)
-        )
-        sim.AdvanceTo(0.6)
-        assert c.state(ctx).mode == "approach"
-        assert c.GetOutputPort("gripper.position").Eval(ctx)[0] == pytest.approx(expect)
-        assert c.state(ctx).attempts[0].get("opening", 0.0) == opening
