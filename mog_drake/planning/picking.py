@@ -154,6 +154,8 @@ def next_pick(
         if res.found:
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
             decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
+            # A grasp the lookahead's last resort found, replayed from its memory.
+            decision.last_resort, decision.relaxed = bool(res.found_by), res.found_by == "relaxed"
             break
         if res.best_lift is not None and (best is None or len(res.best_lift[1]) > len(best[1])):
             best = res.best_lift
@@ -298,6 +300,8 @@ def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoi
             )
             skip = () if is_relaxed else first.tested_indices
             res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
+            if res.found:
+                res = replace(res, found_by="relaxed" if is_relaxed else "nominal")
             decision.plans.append(res)
             decision.groups_tried += 1
             decision.physics_checks += res.tested

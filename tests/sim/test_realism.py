@@ -404,3 +404,23 @@ def test_the_last_resort_first_takes_a_grasp_most_screen_worlds_keep_clear():
         assert d.status == "grasp" and d.last_resort and d.relaxed == relaxed
     with pytest.raises(MogError, match="planner.robust.relaxed_share must be in"):
         RobustConfig(screen=8, relaxed_share=1.0).check()
+
+
+def test_a_last_resort_grasp_replayed_from_memory_is_still_a_last_resort():
+    """The lookahead remembers the grasp its decision found; when that was the last resort's
+    (relaxed here), the next decision that replays it with no physics says so too, rather than
+    passing it off as a robust grasp."""
+    from mog_drake.planning.config import PlannerSpec
+    from mog_drake.planning.decision import FailedGroup, around_group
+    from mog_drake.planning.picking import next_pick
+    from mog_drake.planning.planner import GraspConfig, GraspPlanner
+
+    lone = make_scene([("thick_bar", 0.0, 0.0, 0.3)])
+    wide = RobustConfig(screen=8, pose_sigma=0.02, yaw_sigma_deg=10, relaxed_share=0.1)
+    planner = GraspPlanner(RobustVerifier(_Lifts(), [], wide), GraspConfig("gp", max_physics=2))
+    d = next_pick(lone, planner, PlannerSpec())
+    assert d.last_resort and d.relaxed and d.plans[-1].found_by == "relaxed"
+    memory = (FailedGroup((0,), around_group(lone, (0,), planner.gripper), d.plans[-1]),)
+    again = next_pick(lone, planner, PlannerSpec(), failures=memory)
+    assert again.status == "grasp" and again.remembered == 1 and again.physics_checks == 0
+    assert np.allclose(again.grasp, d.grasp) and again.last_resort and again.relaxed
