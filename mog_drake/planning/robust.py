@@ -26,7 +26,8 @@ to physics, took larger groups that failed more (docs/experiments.md, v33).
 
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
-person.
+person. With ``relaxed_share`` it first plans with `RobustVerifier.relaxed`: the screen at that
+share of its worlds, then the nominal check.
 """
 
 from __future__ import annotations
