@@ -71,10 +71,11 @@ class RobustVerifier:
     """``base``: the nominal check; ``variants``: one verifier per sample, each with its own
     friction and mass (`perturbation_scales`)."""
 
-    def __init__(self, base, variants, config: RobustConfig):
+    def __init__(self, base, variants, config: RobustConfig, *, clear_needed: int | None = None):
         self.base, self.variants, self.config = base, list(variants), config
         self.required = config.required or config.samples
-        self.clear_needed = config.screen  # screen worlds that must keep the jaws clear
+        # Screen worlds that must keep the jaws clear: all of them, but in `relaxed`.
+        self.clear_needed = config.screen if clear_needed is None else clear_needed
         if len(self.variants) != config.samples:
             raise ValueError(f"{config.samples} samples need as many variants, got {len(self.variants)}")
 
@@ -87,9 +88,12 @@ class RobustVerifier:
         cfg = self.config
         if not cfg.relaxed_share or not cfg.screen:
             return None
-        out = RobustVerifier(self.base, [], replace(cfg, samples=0, required=0))
-        out.clear_needed = math.ceil(cfg.relaxed_share * cfg.screen)
-        return out
+        return RobustVerifier(
+            self.base,
+            [],
+            replace(cfg, samples=0, required=0),
+            clear_needed=math.ceil(cfg.relaxed_share * cfg.screen),
+        )
 
     @property
     def nominal(self):
