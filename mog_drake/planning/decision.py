@@ -26,11 +26,15 @@ class FailedGroup:
     """A group the planner found no grasp for, with what the physics check saw, or (``result``
     found: the lookahead's, see `lookahead`) the grasp it found. ``around`` holds (id, shape,
     vertices) of every object within reach of the group then: the check's verdict depends on
-    nothing else, so while they are all where they were it stands."""
+    nothing else, so while they are all where they were it stands. ``stage``: the pass that
+    planned it, "" for the decision's own, or a pass of the last resort ("relaxed",
+    "nominal": `mog_drake.planning.picking._last_resort`), whose failures are replayed by
+    that pass only."""
 
     group: tuple[int, ...]
     around: tuple
     result: PlanResult
+    stage: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,12 +103,16 @@ def same_group(f_group, f_around, group, around) -> dict[int, int] | None:
     return ids if {ids.get(i, -1) for i in f_group} == set(group) else None
 
 
-def recall(pending: list, group, around, avoid) -> PlanResult | None:
+def recall(pending: list, group, around, avoid, stage: str = "") -> PlanResult | None:
     """The replay of the first remembered verdict in ``pending`` of ``group`` with ``around``
-    (taken out of ``pending``); None if none is remembered, or its grasp repeats one to
-    avoid: plan the group."""
+    planned by pass ``stage`` (taken out of ``pending``); None if none is remembered, or its
+    grasp repeats one to avoid: plan the group."""
     for k, f in enumerate(pending):
-        if isinstance(f, FailedGroup) and (ids := same_group(f.group, f.around, group, around)) is not None:
+        if (
+            isinstance(f, FailedGroup)
+            and f.stage == stage
+            and (ids := same_group(f.group, f.around, group, around)) is not None
+        ):
             del pending[k]
             return _replay(f, ids, group, avoid)
     return None

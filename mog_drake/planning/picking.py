@@ -162,10 +162,12 @@ def next_pick(
     if decision.status != "grasp" and partial_lifts and best is not None:
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
         decision.partial, decision.expected = True, tuple(best[1])
+    deeper: list[FailedGroup] = []
     if decision.status != "grasp" and last_resort and planner.config.max_physics:
-        _last_resort(scene, planner, decision, rng, avoid, partial_lifts)
+        memory = (pending, deeper) if failures is not None else None
+        _last_resort(scene, planner, decision, rng, avoid, partial_lifts, memory)
     if failures is not None:
-        decision.failures = tuple(seen + pending)[:MEMORY_SIZE]
+        decision.failures = tuple(seen + deeper + pending)[:MEMORY_SIZE]
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
@@ -274,34 +276,49 @@ def _found_again(entries, scene) -> list[int | None]:
     return out
 
 
-def _last_resort(scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts) -> None:
+def _last_resort(
+    scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts, memory=None
+) -> None:
     """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
     skipping the candidates already simulated (a remembered plan simulated none now); takes
     the first grasp found, or with ``partial_lifts`` the first partial lift. A robust check
     (`planning.robust`) is relaxed to its nominal one here; with ``relaxed_share``, first to
     its screen at that share (`RobustVerifier.relaxed`, each pass its own budget; the
-    candidates its full screen refused are screened again)."""
+    candidates its full screen refused are screened again).
+
+    ``memory`` (pending, kept): with the failure memory on, a group a pass of an earlier
+    decision (or the lookahead) planned with the whole of LAST_RESORT_CHECKS and found no
+    grasp for is replayed from ``pending`` while everything within its reach lies where it
+    did, and each pass's failures at that cap go to ``kept`` (`FailedGroup.stage`)."""
     tried = list(decision.plans)
     relaxed = getattr(planner.verifier, "relaxed", None)
     first_pass = relaxed() if relaxed is not None else None
     passes = [(first_pass, True)] if first_pass is not None else []
     passes.append((getattr(planner.verifier, "nominal", planner.verifier), False))
     for verifier, is_relaxed in passes:
+        stage = "relaxed" if is_relaxed else "nominal"
         deeper = copy.copy(planner)
         deeper.verifier = verifier
         spent = 0
         for first in tried:
             if spent >= LAST_RESORT_TOTAL:
                 break
-            deeper.config = replace(
-                planner.config,
-                max_physics=min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent),
-                max_physics_large=None,
-            )
-            skip = () if is_relaxed else first.tested_indices
-            res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
-            if res.found:
-                res = replace(res, found_by="relaxed" if is_relaxed else "nominal")
+            cap = min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent)
+            res = around = None
+            if memory is not None:
+                around = around_group(scene, first.group, planner.gripper)
+                res = recall(memory[0], first.group, around, avoid, stage)
+                decision.remembered += res is not None
+            if res is None:
+                deeper.config = replace(planner.config, max_physics=cap, max_physics_large=None)
+                skip = () if is_relaxed else first.tested_indices
+                res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
+                if res.found:
+                    res = replace(res, found_by=stage)
+                elif memory is not None and cap == LAST_RESORT_CHECKS:
+                    memory[1].append(FailedGroup(tuple(res.group), around, res, stage))
+            elif memory is not None:
+                memory[1].append(FailedGroup(tuple(res.group), around, res, stage))
             decision.plans.append(res)
             decision.groups_tried += 1
             decision.physics_checks += res.tested

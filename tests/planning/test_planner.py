@@ -238,6 +238,29 @@ def test_last_resort_plans_deeper_before_giving_up():
     assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
 
 
+def test_the_last_resort_s_failures_are_remembered_while_the_group_lies_where_it_did():
+    """A lone cube with no grasp: the last resort spends its checks and the decision keeps
+    the verdict; the next decision on the same table replays both passes' verdicts (the capped
+    plan's and the last resort's) with no physics, and plans again once the cube has moved."""
+    from mog_drake.planning.picking import LAST_RESORT_CHECKS, next_pick
+
+    scene = make_scene([("small_yellow_cube", 0.02, -0.01, 0.3)])
+    v = FakeVerifier()
+    planner = GraspPlanner(v, GraspConfig("gp", max_physics=4))
+    d = next_pick(scene, planner, failures=())
+    assert d.status == "no_grasp" and len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
+    assert [f.stage for f in d.failures] == ["", "nominal"]
+    v.asked.clear()
+    again = next_pick(scene, planner, failures=d.failures)
+    assert again.status == "no_grasp" and v.asked == [] and again.remembered == 2
+    assert [f.stage for f in again.failures] == ["", "nominal"]
+    moved = make_scene([("small_yellow_cube", 0.03, -0.01, 0.3)])
+    assert (
+        next_pick(moved, planner, failures=d.failures).remembered == 0
+        and len(v.asked) == len(d.plans[0].tested_indices) + d.plans[1].tested
+    )
+
+
 def test_a_large_group_gets_fewer_checks_and_the_last_resort_goes_past_them(scene):
     """max_physics_large caps the checks of a group of three objects, a pair keeps
     max_physics; before a decision gives up, the last resort goes on past the cap."""
