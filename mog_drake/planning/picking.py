@@ -165,7 +165,7 @@ def next_pick(
     deeper: list[FailedGroup] = []
     if decision.status != "grasp" and last_resort and planner.config.max_physics:
         memory = (pending, deeper) if failures is not None else None
-        _last_resort(scene, planner, decision, rng, avoid, partial_lifts, memory)
+        _last_resort(scene, planner, decision, rng, avoid, partial_lifts, memory=memory)
     if failures is not None:
         decision.failures = tuple(seen + deeper + pending)[:MEMORY_SIZE]
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
@@ -277,7 +277,7 @@ def _found_again(entries, scene) -> list[int | None]:
 
 
 def _last_resort(
-    scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts, memory=None
+    scene, planner: GraspPlanner, decision: PickDecision, rng, avoid, partial_lifts, *, memory=None
 ) -> None:
     """Plans each group the decision tried again with LAST_RESORT_CHECKS more physics checks,
     skipping the candidates already simulated (a remembered plan simulated none now); takes
