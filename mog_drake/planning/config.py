@@ -209,9 +209,6 @@ class RobustConfig:
     # a grasp whose open jaws this share of the screen's worlds keeps clear (the nominal check
     # after the screen), before one the nominal check alone passes.
     relaxed_share: float = 0.0
-    # There, the candidates the most screen worlds keep clear are tried first (ties in the
-    # planner's order), rather than the planner's first that enough worlds keep clear.
-    relaxed_by_margin: bool = False
 
     def check(self) -> None:
         if not 0 <= self.samples <= 16 or not 0 <= self.required <= self.samples:

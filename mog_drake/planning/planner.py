@@ -216,9 +216,6 @@ class GraspPlanner:
         skip = [int(i) for i in skip if 0 <= int(i) < len(cands)]
         if skip:
             order = order[~np.isin(order, skip)]
-        rank = getattr(self.verifier, "rank", None)  # the relaxed robust check's (`RobustVerifier.rank`)
-        if rank is not None:
-            order = rank(scene, group, cands, order)
 
         cap = cfg.max_physics
         if cfg.max_physics_large is not None and len(group) >= LARGE_GROUP:

@@ -71,20 +71,11 @@ class RobustVerifier:
     """``base``: the nominal check; ``variants``: one verifier per sample, each with its own
     friction and mass (`perturbation_scales`)."""
 
-    def __init__(
-        self,
-        base,
-        variants,
-        config: RobustConfig,
-        *,
-        clear_needed: int | None = None,
-        by_margin: bool = False,
-    ):
+    def __init__(self, base, variants, config: RobustConfig, *, clear_needed: int | None = None):
         self.base, self.variants, self.config = base, list(variants), config
         self.required = config.required or config.samples
         # Screen worlds that must keep the jaws clear: all of them, but in `relaxed`.
         self.clear_needed = config.screen if clear_needed is None else clear_needed
-        self.by_margin = by_margin  # `rank`
         if len(self.variants) != config.samples:
             raise ValueError(f"{config.samples} samples need as many variants, got {len(self.variants)}")
 
@@ -102,21 +93,7 @@ class RobustVerifier:
             [],
             replace(cfg, samples=0, required=0),
             clear_needed=math.ceil(cfg.relaxed_share * cfg.screen),
-            by_margin=cfg.relaxed_by_margin,
         )
-
-    def rank(self, scene, group, cands, order) -> np.ndarray:
-        """The planner's candidate ``order`` (indices into ``cands``), with ``by_margin``
-        (`relaxed_by_margin`) stably sorted by how many screen worlds keep each candidate's
-        open jaws clear, most first; else unchanged."""
-        if not self.by_margin or not len(order):
-            return order
-        n = self.config.screen
-        counts = [
-            self.clear(scene, group, cands[i], self.offsets(scene, group, cands[i], range(n))).sum()
-            for i in order
-        ]
-        return np.asarray(order)[np.argsort(-np.array(counts), kind="stable")]
 
     @property
     def nominal(self):

@@ -406,31 +406,6 @@ def test_the_last_resort_first_takes_a_grasp_most_screen_worlds_keep_clear():
         RobustConfig(screen=8, relaxed_share=1.0).check()
 
 
-def test_the_relaxed_pass_by_margin_takes_the_grasp_the_most_worlds_keep_clear():
-    """Two bars 45 mm apart, 4 mm of pose error, two checks per group: no robust grasp within
-    the cap. The relaxed pass (half of 16 worlds) takes the planner's first candidate that
-    half the worlds keep clear; with ``relaxed_by_margin`` the candidate the most worlds keep
-    clear, here all 16, which no other candidate of the group beats."""
-    from mog_drake.planning.config import PlannerSpec
-    from mog_drake.planning.picking import next_pick
-    from mog_drake.planning.planner import GraspConfig, GraspPlanner
-
-    near = make_scene([("thick_bar", 0.0, 0.0, 0.0), ("thick_bar", 0.0, 0.045, 0.0)])
-    cfg = RobustConfig(screen=16, pose_sigma=0.004, yaw_sigma_deg=4, relaxed_share=0.5)
-    counts = {}
-    for by_margin in (False, True):
-        robust = RobustVerifier(_Lifts(), [], replace(cfg, relaxed_by_margin=by_margin))
-        planner = GraspPlanner(robust, GraspConfig("gp", max_physics=2))
-        d = next_pick(near, planner, PlannerSpec())
-        assert d.status == "grasp" and d.relaxed and d.group == (0,)
-        counts[by_margin] = int(
-            robust.clear(near, [0], d.grasp, robust.offsets(near, [0], d.grasp, range(16))).sum()
-        )
-    cands = d.plans[-1].candidate_grasps
-    best = max(int(robust.clear(near, [0], c, robust.offsets(near, [0], c, range(16))).sum()) for c in cands)
-    assert counts[False] < counts[True] == best == 16
-
-
 def test_a_last_resort_grasp_replayed_from_memory_is_still_a_last_resort():
     """The lookahead remembers the grasp its decision found; when that was the last resort's
     (relaxed here), the next decision that replays it with no physics says so too, rather than
