@@ -162,12 +162,12 @@ def next_pick(
     if decision.status != "grasp" and partial_lifts and best is not None:
         decision.status, decision.grasp, decision.group = "grasp", best[0], tuple(best[1])
         decision.partial, decision.expected = True, tuple(best[1])
-    deeper: list[FailedGroup] = []
+    kept: list[FailedGroup] = []  # the last resort's failures
     if decision.status != "grasp" and last_resort and planner.config.max_physics:
-        memory = (pending, deeper) if failures is not None else None
+        memory = (pending, kept) if failures is not None else None
         _last_resort(scene, planner, decision, rng, avoid, partial_lifts, memory=memory)
     if failures is not None:
-        decision.failures = tuple(seen + deeper + pending)[:MEMORY_SIZE]
+        decision.failures = tuple(seen + kept + pending)[:MEMORY_SIZE]
     decision.shapes = tuple(scene.objects[i].shape for i in decision.group)
     decision.planning_time = time.perf_counter() - t0
     return decision
@@ -317,7 +317,7 @@ def _last_resort(
                     res = replace(res, found_by=stage)
                 elif memory is not None and cap == LAST_RESORT_CHECKS:
                     memory[1].append(FailedGroup(tuple(res.group), around, res, stage))
-            elif memory is not None:
+            else:  # replayed: kept for the next decision too
                 memory[1].append(FailedGroup(tuple(res.group), around, res, stage))
             decision.plans.append(res)
             decision.groups_tried += 1
