@@ -22,7 +22,8 @@ Extensions of Alg. 1, each a `PlannerSpec` setting or an argument of `next_pick`
   within its reach lies where it did; its remembered plan, partial lift included, stands in.
 * last resort: when no group has a grasp within the planner's cap on physics checks, each is
   planned again with up to LAST_RESORT_CHECKS more (LAST_RESORT_TOTAL in all) before the
-  decision gives up ("no_grasp"); a robust planner's check relaxed (`_last_resort`).
+  decision gives up ("no_grasp"); a robust planner's check relaxed (`_last_resort`). With
+  the memory on, its failures are remembered too, each by the pass that found it.
 * unrecognised blobs: once no library object is left, what perception could not recognise
   (a prism knocked onto its side) is planned as prisms of its outline and top height
   (`unrecognised_scene`); without a grasp the status is "unrecognised".
