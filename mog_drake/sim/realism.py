@@ -227,3 +227,25 @@ class World:
         """The noise of the image taken at simulated time ``t``: the same image (a render
         evaluated again) gets the same noise, the next image new noise."""
         return np.random.default_rng([*self.noise_seed, int(round(t * 1e4))])
+
+
+def seen_in_body(R_WB: np.ndarray, offset) -> tuple[np.ndarray, np.ndarray]:
+    """Where the camera sees an object off its true pose by ``offset`` = (dx, dy, dyaw), a pose
+    estimator's error in the table's plane, as a pose in the object's body frame: (R_BG, p_BG)
+    for its perception geometry, the body at orientation ``R_WB`` (3 x 3). The shift lies in
+    the table's plane whichever way up the object lies, along the body's heading (the yaw of
+    its x axis, or of its y axis less 90 deg when x stands up), and the turn is about the
+    vertical. For an object as the scene put it (body z up) this is (Rz(dyaw), (dx, dy, 0)): the
+    error in its own frame. Registered once in the body frame, a bar knocked onto its side
+    would carry dy along its vertical axis and be seen under the table or above its top."""
+    R = np.asarray(R_WB, float)
+    dx, dy, dyaw = (float(v) for v in offset)
+    if abs(R[2, 0]) < 0.7:
+        psi = np.arctan2(R[1, 0], R[0, 0])
+    else:
+        psi = np.arctan2(R[1, 1], R[0, 1]) - np.pi / 2
+    c, s = np.cos(psi), np.sin(psi)
+    shift = np.array([c * dx - s * dy, s * dx + c * dy, 0.0])
+    cz, sz = np.cos(dyaw), np.sin(dyaw)
+    Rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    return R.T @ Rz @ R, R.T @ shift

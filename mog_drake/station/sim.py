@@ -43,7 +43,7 @@ from mog_drake.sim.models import (
     filter_gripper_self_collisions,
     pose_to_transform,
 )
-from mog_drake.sim.realism import depth_artefacts
+from mog_drake.sim.realism import depth_artefacts, seen_in_body
 from mog_drake.sim.ur5 import JOINT_NAMES, URDF_PATH, base_transform, palm_in_flange
 
 # Meshcat needs no LCM: an in-memory one keeps ApplyVisualizationConfig off the network.
@@ -191,8 +191,9 @@ ARM_LEVER = 1.1  # m: the UR5's reach (0.85 m) plus the gripper's length, with r
 class StationHandles:
     """What tests and the simulation driver may need beyond the ports."""
 
-    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, *, arm_accel):
+    def __init__(self, plant, scene_graph, robot, bodies, scene, camera_intrinsics, *, arm_accel, seen=None):
         self.camera_intrinsics = camera_intrinsics
+        self.seen = seen or {}  # object id -> its pose error (dx, dy, dyaw) where it has one
         self.arm_accel = arm_accel  # m/s^2, bound on any point of the arm's acceleration
         self.plant = plant
         self.scene_graph = scene_graph
@@ -214,6 +215,63 @@ class StationHandles:
         return Sleep(
             self.plant, self.scene_graph, self.bodies, gripper, radii, period=period, accel=self.arm_accel
         )
+
+    def seen_poses(self, period: float):
+        """The objects' pose errors kept in the table's plane as they topple (`SeenPoses`),
+        looked at every ``period`` s; None where no object has one."""
+        return SeenPoses(self.plant, self.scene_graph, self.bodies, self.seen, period) if self.seen else None
+
+
+class SeenPoses:
+    """Keeps where the camera sees each object (its perception geometry, off its true pose by
+    the world's pose error: `add_prism`'s ``seen``) in the table's plane whichever way up the
+    object lies (`realism.seen_in_body`). The error is registered in the body frame, which is the
+    table's plane only while the object stands as the scene put it: a bar knocked onto its side
+    would carry the error's dy along its now vertical axis, seen millimetres under the table (a
+    7 mm bar vanished from the depth image for good) or above its top (an unrecognised blob).
+    ``update`` re-places the geometry of each object whose pose moved it by more than
+    ``TOL_M`` or ``TOL_RAD``, at most every ``period`` s of simulated time: an object that
+    just fell is seen with the old placement until then, and images wait for the table to be
+    still."""
+
+    TOL_M, TOL_RAD = 5e-4, np.radians(0.5)
+
+    def __init__(self, plant, scene_graph, bodies: dict, offsets: dict, period: float):
+        from pydrake.geometry import Role
+
+        self.plant, self.scene_graph, self.period = plant, scene_graph, period
+        inspector = scene_graph.model_inspector()
+        self.items = []  # (body, perception geometry id, its shape, the offset, its pose in the body)
+        for i, off in offsets.items():
+            body = bodies[i]
+            frame = plant.GetBodyFrameIdOrThrow(body.index())
+            (gid,) = inspector.GetGeometries(frame, Role.kPerception)
+            self.items.append([body, gid, inspector.GetShape(gid), off, inspector.GetPoseInFrame(gid)])
+        self.source = plant.get_source_id()
+        self.last = -np.inf
+        self.moves = 0  # geometries re-placed
+
+    def update(self, root_context) -> None:
+        t = root_context.get_time()
+        if t - self.last < self.period - 1e-9:
+            return
+        self.last = t
+        pc = self.plant.GetMyContextFromRoot(root_context)
+        sgc = None
+        for item in self.items:
+            body, gid, shape, off, X_old = item
+            R_BG, p_BG = seen_in_body(self.plant.EvalBodyPoseInWorld(pc, body).rotation().matrix(), off)
+            X_new = RigidTransform(RotationMatrix(R_BG), p_BG)
+            turn = X_old.rotation().InvertAndCompose(X_new.rotation()).ToAngleAxis().angle()
+            if (
+                np.linalg.norm(X_new.translation() - X_old.translation()) <= self.TOL_M
+                and turn <= self.TOL_RAD
+            ):
+                continue
+            sgc = sgc or self.scene_graph.GetMyMutableContextFromRoot(root_context)
+            self.scene_graph.ChangeShape(sgc, self.source, gid, shape, X_new)
+            item[4] = X_new
+            self.moves += 1
 
 
 # Drake's VTK renderer draws pixel (u, v) from the ray through (u + 0.5, v + 0.5) of its
@@ -398,8 +456,16 @@ def MakeSimStation(scenario: Scenario, scene=None, meshcat=None, board=None):
     # speed squared) on a lever of at most ARM_LEVER, four times over for the PD's tracking.
     r = scenario.robot
     accel = 4.0 * (r.max_joint_acceleration + r.max_joint_speed**2) * ARM_LEVER
+    seen = {i: world.pose_offset[i] for i in bodies if np.any(world.pose_offset[i])}
     return diagram, StationHandles(
-        plant, scene_graph, robot, bodies, scene, rendered_intrinsics(scenario.camera), arm_accel=accel
+        plant,
+        scene_graph,
+        robot,
+        bodies,
+        scene,
+        rendered_intrinsics(scenario.camera),
+        arm_accel=accel,
+        seen=seen,
     )
 
 

@@ -222,6 +222,7 @@ def run_pick(
 
 
 SLEEP_PERIOD = 0.01  # s of simulated time between two looks at which objects may sleep
+SEEN_PERIOD = 0.05  # s between two looks at where the camera sees each object (`SeenPoses`)
 # s of simulated time after an attempt ends (its jaws open over the bin) before it is scored:
 # what it dropped has landed by then. (The arm may go on from the bin at once.)
 LANDING_S = 1.0
@@ -246,6 +247,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     # Resting objects out of reach sleep (looked at every SLEEP_PERIOD s of simulated time).
     sleep = handles.sleep(SLEEP_PERIOD) if scored and scenario.sleep else None
     step = SLEEP_PERIOD if sleep else 0.25
+    seen = handles.seen_poses(SEEN_PERIOD) if scored else None
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()
@@ -274,6 +276,8 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
             retire.update(plant_ctx)
         if sleep:
             sleep.update(ctx, skip=gone)
+        if seen:
+            seen.update(ctx)
         s = controller.state(ctrl_ctx)
         if scored and s.mode == "approach" and len(s.attempts) - 1 not in landed and s.attempts:
             landed[len(s.attempts) - 1] = jaws_land_on(

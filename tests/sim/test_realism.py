@@ -14,7 +14,14 @@ from mog_drake.planning.config import RobustConfig
 from mog_drake.planning.protocol import GraspResult
 from mog_drake.planning.robust import RobustVerifier
 from mog_drake.scenario import ClutteredScene, Scenario, load_scenario
-from mog_drake.sim.realism import D435_BASELINE, FLY_JUMP, RealismConfig, d435_rms, depth_artefacts
+from mog_drake.sim.realism import (
+    D435_BASELINE,
+    FLY_JUMP,
+    RealismConfig,
+    d435_rms,
+    depth_artefacts,
+    seen_in_body,
+)
 from mog_drake.sim.verifier import DrakeVerifier
 
 REAL = RealismConfig(
@@ -97,6 +104,76 @@ def test_holes_fall_where_the_right_imager_cannot_see_and_flying_pixels_between_
     edge[41:79, 61:99] = False
     assert moved.any() and not (moved & ~edge).any()
     assert np.all((fly[moved] >= 0.77) & (fly[moved] <= 0.8)) and FLY_JUMP < 0.03
+
+
+def test_the_pose_error_of_an_object_lying_any_way_up_stays_in_the_table_plane():
+    """`seen_in_body`: upright, the error in the body's own frame (as registered); on its side
+    or on its end, the same shift and turn in the table's plane, nothing vertical."""
+    from pydrake.math import RotationMatrix
+
+    off = (0.003, -0.004, 0.05)
+    Rz = RotationMatrix.MakeZRotation
+    R_BG, p_BG = seen_in_body(Rz(0.7).matrix(), off)
+    assert np.allclose(R_BG, Rz(0.05).matrix()) and np.allclose(p_BG, [0.003, -0.004, 0.0])
+    for R_WB in (
+        Rz(0.7) @ RotationMatrix.MakeXRotation(np.pi / 2),  # on its side
+        Rz(0.7) @ RotationMatrix.MakeXRotation(-np.pi / 2),
+        Rz(-1.2) @ RotationMatrix.MakeYRotation(np.pi / 2),  # on its end
+    ):
+        R = R_WB.matrix()
+        R_BG, p_BG = seen_in_body(R, off)
+        shift, turn = R @ p_BG, R @ R_BG @ R.T  # in the world
+        assert shift[2] == pytest.approx(0.0, abs=1e-12)
+        assert np.linalg.norm(shift) == pytest.approx(0.005)
+        assert np.allclose(turn, Rz(0.05).matrix())
+
+
+def test_a_bar_knocked_onto_its_side_is_seen_where_its_pose_error_puts_it_in_the_table_plane():
+    """A thin bar (7 mm tall on its side) with a pose error of 5.6 mm along its own y axis,
+    knocked over so that the error points down, then up. Left in the body frame, the error
+    sinks the bar's image into the table, its top 1.4 mm up (perception finds nothing), or
+    lifts it by 5.6 mm; `SeenPoses` re-places it in the table's plane and perception finds the
+    bar on its side, within the error of its true footprint, either way."""
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from mog_drake.camera import camera_pose
+    from mog_drake.sim.models import prism_points
+    from mog_drake.station import MakeStation, render_still
+
+    sc = Scenario(realism=RealismConfig(pose_error=0.007))
+    d, h = MakeStation(sc, make_scene([("thin_bar", 0.0, 0.0, 0.3)]))
+    (_, dy, _), err = h.seen[0], np.linalg.norm(h.seen[0][:2])
+    assert abs(dy) > 0.0045  # the draw this test stands on: more than a 7 mm bar's margin
+    ctx = d.CreateDefaultContext()
+    pc = h.plant.GetMyContextFromRoot(ctx)
+    body, seen = h.bodies[0], h.seen_poses(0.0)
+    perceiver = sc.perceiver()
+
+    def bars_near(centre):
+        rgb, depth = render_still(sc, d, ctx)
+        found = perceiver.perceive(rgb, depth, camera_pose(sc.camera), h.camera_intrinsics).objects
+        return [
+            o
+            for o in found
+            if o.shape == "thin_bar:on_side" and np.hypot(o.x - centre[0], o.y - centre[1]) < 0.02
+        ]
+
+    down = -np.sign(dy) * np.pi / 2  # turns the body's y axis, and dy with it, down
+    for roll in (down, -down):
+        X = RigidTransform(
+            RotationMatrix.MakeZRotation(0.3) @ RotationMatrix.MakeXRotation(roll), [0, 0, 0.0035]
+        )
+        h.plant.SetFreeBodyPose(pc, body, X)
+        footprint = X.multiply(prism_points(h.scene.shape(0)))[:2].mean(axis=1)
+        if roll == down:
+            assert not bars_near(footprint)
+        seen.update(ctx)
+        # (Re-placing a geometry does not invalidate a render already cached in this context;
+        # in a simulation every step does.)
+        h.plant.SetFreeBodyPose(pc, body, X)
+        (bar,) = bars_near(footprint)
+        assert np.hypot(bar.x - footprint[0], bar.y - footprint[1]) < err + 0.002
+    assert seen.moves == 2
 
 
 def test_realism_settings_are_checked_at_load(tmp_path):
