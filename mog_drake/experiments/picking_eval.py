@@ -188,6 +188,11 @@ def summarize(results: list[dict], modes) -> dict:
         row["missed"], row["lost"] = drops["missed"], drops["lost"]
         if lone := lone_reasons(runs):
             row["lone"] = lone
+        # Attempts planned on a scene that had nothing for an object in view (`scoring.unseen`).
+        blind = [a for r in runs for a in r["attempts"] if a.get("unseen")]
+        if blind:
+            row["unseen_attempts"] = len(blind)
+            row["unseen_failed"] = sum(not a.get("picked") for a in blind)
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
@@ -309,6 +314,11 @@ def losses_text(summary: dict) -> str:
             f"{r.get('all_attempts', 0)} attempts; failed attempts: {r.get('missed', 0)} lifted "
             f"nothing, {r.get('lost', 0)} dropped all they lifted; runs ended: {ends}"
         )
+        if r.get("unseen_attempts"):
+            lines.append(
+                f"{r['mode']}: {r['unseen_attempts']} attempts planned on a scene that had nothing for an "
+                f"object lying in view, {r['unseen_failed']} of them failed"
+            )
         if r.get("lone"):
             lines.append(
                 f"{r['mode']}: {sum(r['lone'].values())} grasps of one object, no push setting up more: "

@@ -2,6 +2,7 @@
 It stays outside the application Diagram: the application never reads ground truth."""
 
 import numpy as np
+import shapely
 
 from mog_drake.camera import camera_sees
 from mog_drake.geometry.clip import strip_extent
@@ -78,6 +79,45 @@ def jaws_land_on(
         if depth > LENGTH_TOL:
             out[int(i)] = float(depth)
     return out
+
+
+# m: a perceived object stands for a true one whose footprint's centre lies this near its own
+# (the paper's cell: a 3 mm calibration shift and each object's own 3 mm error, at 3 sigma).
+UNSEEN_MATCH = 0.02
+
+
+def unseen(plant, plant_context, bodies, scene, perceived, scenario: Scenario, *, skip=()) -> list[int]:
+    """Scoring only (ground truth): the objects lying on the table in the camera's view and
+    perception's reach that the perceived scene ``perceived`` (its unrecognised blobs in its
+    meta) has nothing for: no blob's outline meets the object's true footprint, and no
+    perceived object is left for it within UNSEEN_MATCH of its footprint's centre (nearest
+    pairs matched first, each once). Perception missed them, and the planner planned as if
+    they were not there."""
+    reach = scenario.perception_reach()
+    truth = {}
+    for i, b in bodies.items():
+        if i in skip:
+            continue
+        X = plant.EvalBodyPoseInWorld(plant_context, b)
+        if not -0.02 < X.translation()[2] < 0.08:  # not on the table
+            continue
+        corners = X.multiply(prism_points(scene.library[scene.objects[i].shape]))[:2].T
+        footprint = shapely.Polygon(convex_hull_ccw(corners))
+        c = footprint.centroid
+        if camera_sees(scenario.camera, [c.x, c.y, 0.0]) and within_reach(c.x, c.y, reach):
+            truth[int(i)] = footprint
+    blobs = [shapely.Polygon(b["vertices"]) for b in perceived.meta.get("unrecognised", ())]
+    truth = {i: f for i, f in truth.items() if not any(f.intersects(b) for b in blobs)}
+    seen = [shapely.Polygon(perceived.polygon(k)).centroid for k in range(len(perceived))]
+    pairs = sorted((f.centroid.distance(q), i, k) for i, f in truth.items() for k, q in enumerate(seen))
+    matched, used = set(), set()
+    for d, i, k in pairs:
+        if d > UNSEEN_MATCH:
+            break
+        if i not in matched and k not in used:
+            matched.add(i)
+            used.add(k)
+    return sorted(set(truth) - matched)
 
 
 def finger_forces(plant, scene_graph, plant_context, fingers: set, bodies: set) -> dict:

@@ -18,7 +18,7 @@ from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
 from mog_drake.station.ports import PORTS_IN
-from mog_drake.station.scoring import finger_forces, jaws_land_on, objects_in_bin, where_left
+from mog_drake.station.scoring import finger_forces, jaws_land_on, objects_in_bin, unseen, where_left
 from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
@@ -256,6 +256,8 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
     landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
     pressed: dict[int, float] = {}  # attempt index -> the largest force its open fingers put on an object (N)
+    missed: dict[int, list] = {}  # attempt index -> objects in view its scene had nothing for (`unseen`)
+    perception_ctx = parts.perception.GetMyContextFromRoot(ctx)
     if scored:
         fingers = handles.finger_indices()
         objects = {b.index() for b in handles.bodies.values()}
@@ -280,6 +282,15 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
             seen.update(ctx)
         s = controller.state(ctrl_ctx)
         if scored and s.mode == "approach" and len(s.attempts) - 1 not in landed and s.attempts:
+            k = len(s.attempts) - 1
+            perceived = parts.perception.GetOutputPort("scene").Eval(perception_ctx).scene
+            if perceived is not None:
+                away = set(gone) | set(
+                    objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
+                )
+                missed[k] = unseen(
+                    handles.plant, plant_ctx, handles.bodies, handles.scene, perceived, scenario, skip=away
+                )
             landed[len(s.attempts) - 1] = jaws_land_on(
                 handles.plant,
                 plant_ctx,
@@ -319,6 +330,9 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 # The largest force the open fingers put on any object on the way down (N),
                 # sampled every `step`: a real arm stops at its force limit (UR5: 150 N).
                 a["approach_force"] = round(pressed.get(done_attempts, 0.0), 1)
+                # Objects in view that the perceived scene it was planned on had nothing for.
+                if missed.get(done_attempts):
+                    a["unseen"] = missed[done_attempts]
                 in_bin_before = len(now)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None

@@ -104,3 +104,35 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "group_radius must be in" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()  # refused before anything was written
+
+
+def test_the_summary_counts_attempts_planned_blind_to_an_object_in_view():
+    """Attempts whose scene had nothing for an object lying in view (`scoring.unseen`) are
+    counted per mode, with how many of them failed, and named in the losses' lines."""
+    from mog_drake.experiments import picking_eval
+
+    def attempt(picked, unseen=None):
+        return {
+            "start": 0.0,
+            "end": 1.0,
+            "group": [0],
+            "picked": picked,
+            "carried": [0] if picked else [],
+            **({"unseen": unseen} if unseen else {}),
+        }
+
+    run = {
+        "mode": "mog",
+        "scene_seed": 0,
+        "summary": {"success_rate": 0.5, "picked_pct": 50.0, "pph": 100.0, "objects_per_success": 1.0},
+        "attempts": [attempt(1), attempt(0, [3]), attempt(1, [3, 4]), attempt(1)],
+    }
+    (row,) = picking_eval.summarize([run], ["mog"])["rows"]
+    assert (row["unseen_attempts"], row["unseen_failed"]) == (2, 1)
+    assert (
+        "mog: 2 attempts planned on a scene that had nothing for an object lying in view, 1 of them failed"
+        in (picking_eval.losses_text({"rows": [row]}))
+    )
+    run["attempts"] = [attempt(1)]
+    (row,) = picking_eval.summarize([run], ["mog"])["rows"]
+    assert "unseen_attempts" not in row

@@ -168,6 +168,48 @@ def test_the_objects_under_an_attempts_open_jaws_are_found_at_their_true_poses()
     assert jaws_land_on(h.plant, pc, h.bodies, h.scene, grasp, gripper=g) == {}
 
 
+def test_scoring_names_the_objects_in_view_that_the_perceived_scene_has_nothing_for():
+    """`unseen`, at the plant's poses: a perceived object 6 mm off stands for its object; an
+    unrecognised blob's outline over an object stands for it; one perceived object cannot stand
+    for two true ones; an object lifted off the table or skipped is not counted."""
+    from conftest import make_scene
+    from pydrake.math import RigidTransform
+
+    from mog_drake.scenes import Scene, SceneObject
+    from mog_drake.station.scoring import unseen
+
+    truth = make_scene(
+        [
+            ("small_yellow_cube", 0.0, 0.0, 0.0),
+            ("thin_bar", 0.02, 0.0, np.pi / 2),  # 4 mm from the cube
+            ("thick_bar", -0.08, 0.05, 0.4),
+        ]
+    )
+    sc = Scenario()
+    d, h = MakeStation(sc, truth)
+    pc = h.plant.GetMyMutableContextFromRoot(d.CreateDefaultContext())
+
+    def perceived(objects, blobs=()):
+        return Scene([SceneObject(*o) for o in objects], truth.library, meta={"unrecognised": list(blobs)})
+
+    def missed(p, skip=()):
+        return unseen(h.plant, pc, h.bodies, h.scene, p, sc, skip=skip)
+
+    cube = truth.objects[0]
+    all_three = [(o.shape, o.x, o.y, o.theta) for o in truth.objects]
+    assert missed(perceived(all_three)) == []
+    off = [(cube.shape, 0.006, 0.0, 0.0), *all_three[1:]]
+    assert missed(perceived(off)) == []
+    assert missed(perceived(all_three[:2])) == [2]
+    # One perceived cube near two true objects (8 and 12 mm): it stands for the nearer only.
+    assert missed(perceived([(cube.shape, 0.008, 0.0, 0.0), all_three[2]])) == [1]
+    blob = {"vertices": np.array([[-0.1, 0.03], [-0.06, 0.03], [-0.06, 0.07], [-0.1, 0.07]]), "top": 0.03}
+    assert missed(perceived(all_three[:2], [blob])) == []
+    assert missed(perceived(all_three[:2]), skip=(2,)) == []
+    h.plant.SetFreeBodyPose(pc, h.bodies[2], RigidTransform([-0.08, 0.05, 0.3]))  # carried
+    assert missed(perceived(all_three[:2])) == []
+
+
 def test_objects_at_rest_in_the_bin_are_retired_and_still_counted():
     from pydrake.math import RigidTransform
     from pydrake.multibody.math import SpatialVelocity
