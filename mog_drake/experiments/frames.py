@@ -74,7 +74,8 @@ def attempts(folder):
     """One row per grasp attempt of a picking sweep: when (simulated s), the group's size and
     shapes, what it meant to take, what it took, its planning time, its outcome, and how many
     objects its open jaws came down on and how far onto the deepest (mm; ground truth; None in
-    sweeps from before it was recorded)."""
+    sweeps from before it was recorded), and how many objects lying in view its scene had
+    nothing for (``unseen``; 0 also in sweeps from before v54, which did not record it)."""
     pd = _pd()
     rows = []
     for r in _records(folder):
@@ -99,6 +100,7 @@ def attempts(folder):
                     if a.get("jaws_on") is None
                     else max(a["jaws_on"].values(), default=0.0),
                     "approach_force": a.get("approach_force"),
+                    "unseen": len(a.get("unseen") or ()),
                 }
             )
     return pd.DataFrame(rows)
