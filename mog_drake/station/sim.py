@@ -241,12 +241,15 @@ class SeenPoses:
 
         self.plant, self.scene_graph, self.period = plant, scene_graph, period
         inspector = scene_graph.model_inspector()
-        self.items = []  # (body, perception geometry id, its shape, the offset, its pose in the body)
+        self.items = []
         for i, off in offsets.items():
             body = bodies[i]
             frame = plant.GetBodyFrameIdOrThrow(body.index())
             (gid,) = inspector.GetGeometries(frame, Role.kPerception)
-            self.items.append([body, gid, inspector.GetShape(gid), off, inspector.GetPoseInFrame(gid)])
+            # [body, its perception geometry, its shape, the offset, the geometry's pose in the
+            # body, the world's up axis in the body when last looked at: as the scene put it]
+            up = np.array([0.0, 0.0, 1.0])
+            self.items.append([body, gid, inspector.GetShape(gid), off, inspector.GetPoseInFrame(gid), up])
         self.source = plant.get_source_id()
         self.last = -np.inf
         self.moves = 0  # geometries re-placed
@@ -256,11 +259,17 @@ class SeenPoses:
         if t - self.last < self.period - 1e-9:
             return
         self.last = t
-        pc = self.plant.GetMyContextFromRoot(root_context)
+        poses = self.plant.get_body_poses_output_port().Eval(self.plant.GetMyContextFromRoot(root_context))
         sgc = None
         for item in self.items:
-            body, gid, shape, off, X_old = item
-            R_BG, p_BG = seen_in_body(self.plant.EvalBodyPoseInWorld(pc, body).rotation().matrix(), off)
+            body, gid, shape, off, X_old, _ = item
+            R_WB = poses[body.index()].rotation().matrix()
+            # Where it is seen depends on its tilt alone (its up axis in its own frame), not on
+            # its yaw: unchanged since the last look, nothing to do.
+            if np.abs(R_WB[2] - item[5]).max() < 1e-3:
+                continue
+            item[5] = R_WB[2].copy()
+            R_BG, p_BG = seen_in_body(R_WB, off)
             X_new = RigidTransform(RotationMatrix(R_BG), p_BG)
             turn = X_old.rotation().InvertAndCompose(X_new.rotation()).ToAngleAxis().angle()
             if (
