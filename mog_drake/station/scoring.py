@@ -91,8 +91,8 @@ def unseen(plant, plant_context, bodies, scene, perceived, scenario: Scenario, *
     perception's reach that the perceived scene ``perceived`` (its unrecognised blobs in its
     meta) has nothing for: no blob's outline meets the object's true footprint, and no
     perceived object is left for it within UNSEEN_MATCH of its footprint's centre (nearest
-    pairs matched first, each once). Perception missed them, and the planner planned as if
-    they were not there."""
+    pairs matched first, each once). The planner planned as if they were not there: perception
+    missed them, or could not see them (an object lying under another counts too)."""
     reach = scenario.perception_reach()
     truth = {}
     for i, b in bodies.items():
