@@ -53,6 +53,16 @@ def where_left(plant, plant_context, bodies, scenario: Scenario, in_bin) -> dict
     return out
 
 
+def _on_table(plant, plant_context, body, scene, i: int):
+    """Object ``i``'s true footprint (its prism at the plant's pose, upright or knocked over,
+    projected on the table; convex, counter-clockwise), or None where it is not on the table:
+    in the air, in the bin or on the floor."""
+    X = plant.EvalBodyPoseInWorld(plant_context, body)
+    if not -0.02 < X.translation()[2] < 0.08:
+        return None
+    return convex_hull_ccw(X.multiply(prism_points(scene.library[scene.objects[i].shape]))[:2].T)
+
+
 def jaws_land_on(
     plant, plant_context, bodies, scene, grasp, *, gripper: GripperGeometry, skip=()
 ) -> dict[int, float]:
@@ -67,11 +77,10 @@ def jaws_land_on(
     for i, b in bodies.items():
         if i in skip:
             continue
-        X = plant.EvalBodyPoseInWorld(plant_context, b)
-        if not -0.02 < X.translation()[2] < 0.08:  # not on the table: in the air, in the bin or on the floor
+        footprint = _on_table(plant, plant_context, b, scene, i)
+        if footprint is None:
             continue
-        corners = X.multiply(prism_points(scene.library[scene.objects[i].shape]))[:2].T
-        P = to_grasp_frame(convex_hull_ccw(corners)[None], np.asarray(grasp, float))
+        P = to_grasp_frame(footprint[None], np.asarray(grasp, float))
         lo, hi, has = strip_extent(P, -hy, hy)
         if not has[0]:
             continue
@@ -98,11 +107,10 @@ def unseen(plant, plant_context, bodies, scene, perceived, scenario: Scenario, *
     for i, b in bodies.items():
         if i in skip:
             continue
-        X = plant.EvalBodyPoseInWorld(plant_context, b)
-        if not -0.02 < X.translation()[2] < 0.08:  # not on the table
+        hull = _on_table(plant, plant_context, b, scene, i)
+        if hull is None:
             continue
-        corners = X.multiply(prism_points(scene.library[scene.objects[i].shape]))[:2].T
-        footprint = shapely.Polygon(convex_hull_ccw(corners))
+        footprint = shapely.Polygon(hull)
         c = footprint.centroid
         if camera_sees(scenario.camera, [c.x, c.y, 0.0]) and within_reach(c.x, c.y, reach):
             truth[int(i)] = footprint

@@ -2,7 +2,7 @@
 MultibodyPlant, exporting the port contract (`mog_drake.station`). Its modelling is the grasp
 verifier's too (`mog_drake.sim.models`)."""
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -222,6 +222,19 @@ class StationHandles:
         return SeenPoses(self.plant, self.scene_graph, self.bodies, self.seen, period) if self.seen else None
 
 
+@dataclass
+class _Seen:
+    """One object whose camera image is off its pose (`SeenPoses`)."""
+
+    body: object
+    geometry: object  # its perception geometry's id
+    shape: object  # that geometry's shape
+    offset: np.ndarray  # its pose error (dx, dy, dyaw)
+    X_BG: object  # where the geometry is placed in the body frame now
+    # The world's up axis in the body frame when last looked at (as the scene put it at first).
+    up: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+
+
 class SeenPoses:
     """Keeps where the camera sees each object (its perception geometry, off its true pose by
     the world's pose error: `add_prism`'s ``seen``) in the table's plane whichever way up the
@@ -243,13 +256,11 @@ class SeenPoses:
         inspector = scene_graph.model_inspector()
         self.items = []
         for i, off in offsets.items():
-            body = bodies[i]
-            frame = plant.GetBodyFrameIdOrThrow(body.index())
+            frame = plant.GetBodyFrameIdOrThrow(bodies[i].index())
             (gid,) = inspector.GetGeometries(frame, Role.kPerception)
-            # [body, its perception geometry, its shape, the offset, the geometry's pose in the
-            # body, the world's up axis in the body when last looked at: as the scene put it]
-            up = np.array([0.0, 0.0, 1.0])
-            self.items.append([body, gid, inspector.GetShape(gid), off, inspector.GetPoseInFrame(gid), up])
+            self.items.append(
+                _Seen(bodies[i], gid, inspector.GetShape(gid), off, inspector.GetPoseInFrame(gid))
+            )
         self.source = plant.get_source_id()
         self.last = -np.inf
         self.moves = 0  # geometries re-placed
@@ -262,24 +273,23 @@ class SeenPoses:
         poses = self.plant.get_body_poses_output_port().Eval(self.plant.GetMyContextFromRoot(root_context))
         sgc = None
         for item in self.items:
-            body, gid, shape, off, X_old, _ = item
-            R_WB = poses[body.index()].rotation().matrix()
+            R_WB = poses[item.body.index()].rotation().matrix()
             # Where it is seen depends on its tilt alone (its up axis in its own frame), not on
             # its yaw: unchanged since the last look, nothing to do.
-            if np.abs(R_WB[2] - item[5]).max() < 1e-3:
+            if np.abs(R_WB[2] - item.up).max() < 1e-3:
                 continue
-            item[5] = R_WB[2].copy()
-            R_BG, p_BG = seen_in_body(R_WB, off)
+            item.up = R_WB[2].copy()
+            R_BG, p_BG = seen_in_body(R_WB, item.offset)
             X_new = RigidTransform(RotationMatrix(R_BG), p_BG)
-            turn = X_old.rotation().InvertAndCompose(X_new.rotation()).ToAngleAxis().angle()
+            turn = item.X_BG.rotation().InvertAndCompose(X_new.rotation()).ToAngleAxis().angle()
             if (
-                np.linalg.norm(X_new.translation() - X_old.translation()) <= self.TOL_M
+                np.linalg.norm(X_new.translation() - item.X_BG.translation()) <= self.TOL_M
                 and turn <= self.TOL_RAD
             ):
                 continue
             sgc = sgc or self.scene_graph.GetMyMutableContextFromRoot(root_context)
-            self.scene_graph.ChangeShape(sgc, self.source, gid, shape, X_new)
-            item[4] = X_new
+            self.scene_graph.ChangeShape(sgc, self.source, item.geometry, item.shape, X_new)
+            item.X_BG = X_new
             self.moves += 1
 
 

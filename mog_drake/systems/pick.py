@@ -291,7 +291,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
                 missed[k] = unseen(
                     handles.plant, plant_ctx, handles.bodies, handles.scene, perceived, scenario, skip=away
                 )
-            landed[len(s.attempts) - 1] = jaws_land_on(
+            landed[k] = jaws_land_on(
                 handles.plant,
                 plant_ctx,
                 handles.bodies,
