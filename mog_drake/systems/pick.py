@@ -248,6 +248,8 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     sleep = handles.sleep(SLEEP_PERIOD) if scored and scenario.sleep else None
     step = SLEEP_PERIOD if sleep else 0.25
     seen = handles.seen_poses(SEEN_PERIOD) if scored else None
+    if seen:  # before the first image
+        seen.update(ctx)
     sim.Initialize()
     if meshcat is not None:
         meshcat.StartRecording()

@@ -176,6 +176,47 @@ def test_a_bar_knocked_onto_its_side_is_seen_where_its_pose_error_puts_it_in_the
     assert seen.moves == 2
 
 
+def test_two_bars_side_by_side_are_never_seen_one_inside_the_other():
+    """Two upright thin bars 9 mm apart (a 2 mm gap), their pose errors 4 mm across them,
+    towards each other. Seen with their whole errors, the two images overlap by 6 mm and the
+    depth image shows one bar: perception finds one. `SeenPoses` sees both with the share of
+    their errors that parts them, perception finds both, and a bar far off keeps its whole
+    error."""
+    from mog_drake.camera import camera_pose
+    from mog_drake.sim.models import prism_points
+    from mog_drake.station import MakeStation, render_still
+    from mog_drake.station.sim import SeenPoses
+
+    th = 0.4
+    across = np.array([-np.sin(th), np.cos(th)])  # each bar's own y axis
+    a, b = np.array([0.0, 0.02]), np.array([0.0, 0.02]) + 0.009 * across
+    mid = (a + b) / 2
+    sc = Scenario()
+    scene = make_scene([("thin_bar", *a, th), ("thin_bar", *b, th), ("thin_bar", 0.1, -0.1, 1.0)])
+    offsets = {
+        0: np.array([0.0, 0.004, 0.0]),
+        1: np.array([0.0, -0.004, 0.0]),
+        2: np.array([0.0, 0.004, 0.0]),
+    }
+    perceiver = sc.perceiver()
+    found = {}
+    for rule in ("whole errors", "parted"):
+        d, h = MakeStation(sc, scene)
+        ctx = d.CreateDefaultContext()
+        points = {i: prism_points(scene.shape(i)) for i in offsets}
+        seen = SeenPoses(h.plant, h.scene_graph, h.bodies, offsets, 0.0, points)
+        if rule == "whole errors":
+            seen.OVERLAP_M2 = np.inf
+        seen.update(ctx)
+        rgb, depth = render_still(sc, d, ctx)
+        objects = perceiver.perceive(rgb, depth, camera_pose(sc.camera), h.camera_intrinsics).objects
+        found[rule] = [o for o in objects if np.hypot(o.x - mid[0], o.y - mid[1]) < 0.02]
+        shares = [item.share for item in seen.items]
+    assert len(found["whole errors"]) == 1
+    assert len(found["parted"]) == 2
+    assert shares[0] == shares[1] < 1.0 and shares[2] == 1.0
+
+
 def test_realism_settings_are_checked_at_load(tmp_path):
     f = tmp_path / "bad.yaml"
     f.write_text("realism:\n  mass_spread: 1.5\n")
