@@ -39,7 +39,8 @@ def perception_summary(rows: list[dict]) -> str:
         t = [r["time_s"] for r in rs]
         lines.append(
             f"noise {level:g}x: found {sum(r['found'] for r in rs)}, missed {sum(r['missed'] for r in rs)}, "
-            f"extra {sum(r['extra'] for r in rs)}, unrecognised {sum(r['unrecognised'] for r in rs)}; "
+            f"extra {sum(r['extra'] for r in rs)}, unrecognised {sum(r['unrecognised'] for r in rs)}, "
+            f"seen with a share of their pose error {sum(r['parted'] for r in rs)} of {sum(r['objects'] for r in rs)}; "
             f"worst position {max(r['pos_max_mm'] for r in rs):.2f} mm (each fit apart from the shift all "
             f"share: worst {max(r['fit_max_mm'] for r in rs):.2f} mm), worst yaw "
             f"{max(r['yaw_max_deg'] for r in rs):.2f} deg; shared shift {statistics.median(r['shift_mm'] for r in rs):.2f} mm "
