@@ -50,7 +50,9 @@ def seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
     centroid. k = 2: the centroids of the two halves of the cluster split at its median along
     each of ``tries + 1`` directions (k-means splits two bars lying side by side along the
     blob's longer side, across both bars, and no seeding finds the split between them).
-    k > 2: ``tries`` k-means seedings."""
+    k > 2: the centroids of k slabs of equal count across each of the cluster's two principal
+    axes (bars lying side by side in a row, which k-means cuts across), then ``tries`` k-means
+    seedings."""
     if k == 1:
         yield pts.mean(axis=0)[None]
     elif k == 2:
@@ -61,6 +63,10 @@ def seedings(pts: np.ndarray, k: int, tries: int, rng: np.random.Generator):
                 continue
             yield np.array([pts[lo].mean(axis=0), pts[~lo].mean(axis=0)])
     else:
+        _, _, axes = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
+        for axis in axes:
+            order = np.argsort(pts @ axis)
+            yield np.array([pts[part].mean(axis=0) for part in np.array_split(order, k)])
         for _ in range(tries):
             yield _kmeans(pts, k, rng)
 

@@ -41,7 +41,7 @@ from mog_drake.perception.fitting import (
     separate_overlaps,
     symmetry_order,
 )
-from mog_drake.perception.instances import EvidenceImage, FitWindow, InstanceFitter
+from mog_drake.perception.instances import EvidenceImage, InstanceFitter
 from mog_drake.perception.pointcloud import (
     DARK,
     Pinhole,
@@ -345,16 +345,24 @@ class Perceiver(InstanceFitter):
         order = sorted(range(len(self.names)), key=lambda k: -self.area[k])
         found_by: dict[int, list[SceneObject]] = {k: [] for k in order}
         pending: list[tuple] = []  # (k, labels, colour mask, several) whose lone windows wait
-        wins: list[FitWindow] = []
+        wins: list[tuple] = []  # (a lone instance's FitWindow, (labels, label, its pixels at the top))
 
         def flush():
             colours = {k: colour for k, _, colour, _ in pending}
-            for f in self._fit_windows(im, wins) if wins else ():
+            fits = self._fit_windows(im, [w for w, _ in wins]) if wins else []
+            for f in fits:
                 im.explained[f.window] |= f.inside & colours[f.k][f.window]
-                found_by[f.k].append(SceneObject(self.names[f.k], *f.pose))
+            for f, (_, (labels, label, idx)) in zip(fits, wins):
+                found_by[f.k].extend(
+                    self.count(
+                        f.k, im, labels, label, idx, 1, colour=colours[f.k], rng=rng, area_px=area_px, lone=f
+                    )
+                )
             for k, labels, colour, several in pending:
                 for label, idx, n_est in several:
-                    found_by[k].extend(self._split(k, im, labels, label, idx, n_est, colour=colour, rng=rng))
+                    found_by[k].extend(
+                        self.count(k, im, labels, label, idx, n_est, colour=colour, rng=rng, area_px=area_px)
+                    )
             pending.clear()
             wins.clear()
 
@@ -389,9 +397,10 @@ class Perceiver(InstanceFitter):
                     n_est = max(int(round(visible / area)), 1)
                     (lone if n_est == 1 else several).append((label, idx, n_est))
             lone_windows = (
-                self._window(k, im, labels, label, im.xy[idx].mean(axis=0)) for label, idx, _ in lone
+                (self._window(k, im, labels, label, im.xy[idx].mean(axis=0)), (labels, label, idx))
+                for label, idx, _ in lone
             )
-            wins.extend(w for w in lone_windows if w is not None)
+            wins.extend(w for w in lone_windows if w[0] is not None)
             pending.append((k, labels, colour, several))
         flush()
         found = [o for k in order for o in found_by[k]]
