@@ -173,15 +173,14 @@ class InstanceFitter:
         """The instances of shape ``k`` in component ``label`` (its flat pixel indices at the
         shape's top ``idx``): ``n_est`` of them split apart (or ``lone``: one fit made already,
         its pixels explained), then one more as long as a split leaves unexplained as much of
-        the top as makes a component an instance (``min_fraction`` of the shape's area) and the
-        split with one more fits every instance clean. The visible area undercounts touching
-        instances: three thick bars touching on the paper's cell showed 2.45 bars' tops, were
-        split in two, and a bar was missed. Their pixels left explained."""
+        the top as makes a component an instance (``min_fraction`` of the shape's area), and
+        the split with one more adds that many pixels to the score and its fits share fewer
+        than SHARED of a top's pixels. The visible area undercounts touching instances: three
+        thick bars touching on the paper's cell showed 2.45 bars' tops, were split in two, and
+        a bar was missed. Their pixels left explained."""
         most_left = self.config.min_fraction * self.area[k]
         instance = self.area[k] / float(area_px.ravel()[idx].mean())  # pixels of one top
-        gain = (
-            self.config.min_fraction * instance
-        )  # the score one more must add: as many pixels as make a component one
+        gain = self.config.min_fraction * instance  # the score one more instance must add
         before = im.explained.copy()
         if lone is None:
             objects, score, _ = self._split(k, im, labels, label, idx, n_est, colour=colour, rng=rng)
@@ -205,8 +204,8 @@ class InstanceFitter:
 
     def _split(self, k: int, im: EvidenceImage, labels, label: int, idx, n_est: int, *, colour, rng) -> tuple:
         """Fits ``n_est`` touching instances of shape ``k`` to component ``label`` (its flat
-        pixel indices ``idx``): the objects of the best split, their pixels left explained, and
-        whether it fitted every instance clean."""
+        pixel indices ``idx``): the objects of the best split, their pixels left explained, its
+        score and how many pixels lie inside two of its fits."""
         cfg = self.config
         name = self.names[k]
         shape = self.library[name]
@@ -254,20 +253,13 @@ class InstanceFitter:
             score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * spill
             # Every instance fitted, each covering its own pixels and nothing that rules
             # it out: no other split can do better.
-            clean = len(fits) == len(seeds) and all(f.clean for f in fits)
             if best is None or score > best[0]:
-                best = (
-                    score,
-                    im.explained,
-                    [SceneObject(name, *f.pose) for f in fits],
-                    clean,
-                    _shared(fits, im),
-                )
+                best = (score, im.explained, [SceneObject(name, *f.pose) for f in fits], _shared(fits, im))
             im.explained = before
-            if clean:
+            if len(fits) == len(seeds) and all(f.clean for f in fits):
                 break
         im.explained = best[1]
-        return best[2], best[0], best[4]
+        return best[2], best[0], best[3]
 
     def _window(self, k: int, im: EvidenceImage, labels: np.ndarray, label: int, centre):
         """The evidence around ``centre`` for shape ``k`` and its score (`FitWindow`), or None
