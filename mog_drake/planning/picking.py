@@ -312,7 +312,10 @@ def _last_resort(
                 decision.remembered += res is not None
             if res is None:
                 deeper.config = replace(planner.config, max_physics=cap, max_physics_large=None)
-                skip = () if is_relaxed else first.tested_indices
+                # The nominal pass simulates again what the robust check refused for want of
+                # robustness alone (its screen simulated nothing; a grasp that failed only
+                # in a perturbed world lifts at the perceived poses), nothing else twice.
+                skip = () if is_relaxed else [i for i in first.tested_indices if i not in first.not_robust]
                 res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
                 if res.found:
                     res = replace(res, found_by=stage)

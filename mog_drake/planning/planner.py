@@ -96,6 +96,9 @@ class PlanResult:
     # "nominal" (the nominal check alone); "" for the planner's own check. Kept in a
     # remembered plan, so a replayed grasp is still known for what it is.
     found_by: str = ""
+    # The tested candidates a robust check refused for want of robustness alone
+    # (`GraspResult.not_robust`), which the last resort's nominal pass checks again.
+    not_robust: list[int] = field(default_factory=list)
 
     @property
     def found(self) -> bool:
@@ -220,13 +223,15 @@ class GraspPlanner:
         cap = cfg.max_physics
         if cfg.max_physics_large is not None and len(group) >= LARGE_GROUP:
             cap = cfg.max_physics_large if cap is None else min(cap, cfg.max_physics_large)
-        grasp, last, tested, best_lift = None, None, [], None
+        grasp, last, tested, not_robust, best_lift = None, None, [], [], None
         t = time.perf_counter()
         for i in self._test_order(order, cands, cfg.vary_axis, [float(cands[j, 2]) for j in skip]):
             if cap is not None and len(tested) >= cap:
                 break
             last = self.verifier.check(scene, group, cands[i])
             tested.append(int(i))
+            if last.not_robust:
+                not_robust.append(int(i))
             held = last.complete and not last.error and last.lifted
             if held and (best_lift is None or len(last.lifted) > len(best_lift[1])):
                 best_lift = (cands[i].copy(), sorted(int(k) for k in last.lifted))
@@ -247,6 +252,7 @@ class GraspPlanner:
             tested,
             cands,
             best_lift,
+            not_robust=not_robust,
         )
 
     def _candidates(self, polys, group, blobs=None):

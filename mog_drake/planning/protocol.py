@@ -29,6 +29,9 @@ class GraspResult:
     # False when the check stopped early because its verdict was already certain: ``lifted``
     # is then only what was in the air at that moment, not objects held to the end.
     complete: bool = True
+    # A robust check's refusal (its screen or its perturbed worlds), not its nominal check's:
+    # the nominal check alone may still take the grasp (`planning.robust`).
+    not_robust: bool = False
 
     def text(self) -> str:
         opening = "-" if np.isnan(self.final_opening) else f"{self.final_opening * 1e3:.2f} mm"

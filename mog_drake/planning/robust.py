@@ -164,6 +164,7 @@ class RobustVerifier:
                 wall_time=time.perf_counter() - t0,
                 error=f"not robust: the open jaws start on an object or off the group in {n} of {of} perturbed worlds",
                 complete=False,
+                not_robust=True,
             )
         first = self.base.check(scene, group, grasp)
         if not first.success or not self.variants:
@@ -189,6 +190,7 @@ class RobustVerifier:
             sim_time=sim_time,
             wall_time=wall_time,
             error=error,
+            not_robust=not ok,
         )
 
 

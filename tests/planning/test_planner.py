@@ -238,6 +238,44 @@ def test_last_resort_plans_deeper_before_giving_up():
     assert len(v.asked) == min(4 + LAST_RESORT_CHECKS, d.plans[0].candidates)
 
 
+def test_the_last_resort_s_nominal_pass_checks_again_what_was_refused_as_not_robust():
+    """A lone cube whose best candidates a robust check refuses for want of robustness (its
+    screen, simulating nothing) while the nominal check alone lifts it with the first: the
+    last resort's nominal pass takes that first candidate. Skipping every candidate the robust
+    pass had tested, it began past them and the decision gave up with the cube on the table
+    (two thin bars on their side were left so on the paper's cell). A candidate whose nominal
+    check failed is not simulated again."""
+    from mog_drake.planning.picking import next_pick
+
+    scene = make_scene([("small_yellow_cube", 0.02, -0.01, 0.3)])
+    order = FakeVerifier()
+    GraspPlanner(order, GraspConfig("gp", max_physics=10)).plan(scene, (0,))
+
+    class Robust:
+        """Refuses every grasp: the first two as not robust, the next two in its nominal check."""
+
+        def __init__(self):
+            self.nominal = FakeVerifier(good=[order.asked[0]])
+            self.asked = []
+
+        def check(self, scene, group, grasp):
+            self.asked.append(np.asarray(grasp).copy())
+            if len(self.asked) <= 2:
+                return GraspResult(False, error="not robust", complete=False, not_robust=True)
+            return GraspResult(False)
+
+    robust = Robust()
+    d = next_pick(scene, GraspPlanner(robust, GraspConfig("gp", max_physics=4)))
+    assert d.status == "grasp" and d.last_resort and not d.relaxed
+    assert np.allclose(d.grasp, order.asked[0])
+    assert d.plans[0].not_robust == d.plans[0].tested_indices[:2]
+    assert len(robust.nominal.asked) == 1  # the first candidate, taken at once
+    robust = Robust()
+    robust.nominal.good = [order.asked[2]]  # lifts only where the robust pass's nominal check failed
+    d = next_pick(scene, GraspPlanner(robust, GraspConfig("gp", max_physics=4)))
+    assert not any(np.allclose(g, order.asked[2]) for g in robust.nominal.asked)
+
+
 def test_the_last_resort_s_failures_are_remembered_while_the_group_lies_where_it_did():
     """A lone cube with no grasp: the last resort spends its checks and the decision keeps
     the verdict; the next decision on the same table replays both passes' verdicts (the capped
