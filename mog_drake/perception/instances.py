@@ -179,19 +179,26 @@ class InstanceFitter:
         thick bars touching on the paper's cell showed 2.45 bars' tops, were split in two, and
         a bar was missed. Their pixels left explained."""
         most_left = self.config.min_fraction * self.area[k]
-        instance = self.area[k] / float(area_px.ravel()[idx].mean())  # pixels of one top
-        gain = self.config.min_fraction * instance  # the score one more instance must add
-        before = im.explained.copy()
+        areas = area_px.ravel()[idx]
+
+        def too_little_left() -> bool:
+            return float(areas[~im.explained.ravel()[idx]].sum()) < most_left
+
         if lone is None:
+            before = im.explained.copy()
             objects, score, _ = self._split(k, im, labels, label, idx, n_est, colour=colour, rng=rng)
         else:
-            before.ravel()[idx] = False
             objects = [SceneObject(self.names[k], *lone.pose)]
+            if too_little_left():  # most lone instances: no copy of the image's mask
+                return objects
+            before = im.explained.copy()
+            before.ravel()[idx] = False
             score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * lone.spill
+        instance = self.area[k] / float(areas.mean())  # pixels of one top
+        gain = self.config.min_fraction * instance  # the score one more instance must add
         n = n_est
         while n < n_est + MORE_INSTANCES:
-            left = ~im.explained.ravel()[idx]
-            if float(area_px.ravel()[idx][left].sum()) < most_left:
+            if too_little_left():
                 break
             kept = im.explained
             im.explained = before.copy()
@@ -251,11 +258,11 @@ class InstanceFitter:
             # _fit weighs it: two fits lying across two bars side by side explain most
             # of them but spill onto the table between.
             score = int(im.explained.ravel()[idx].sum()) - NEGATIVE_WEIGHT * spill
-            # Every instance fitted, each covering its own pixels and nothing that rules
-            # it out: no other split can do better.
             if best is None or score > best[0]:
                 best = (score, im.explained, [SceneObject(name, *f.pose) for f in fits], _shared(fits, im))
             im.explained = before
+            # Every instance fitted, each covering its own pixels and nothing that rules
+            # it out: no other split can do better.
             if len(fits) == len(seeds) and all(f.clean for f in fits):
                 break
         im.explained = best[1]

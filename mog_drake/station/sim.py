@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import shapely
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import (
     Box,
@@ -303,8 +304,6 @@ class SeenPoses:
 
     def _outline(self, item: _Seen, p, R, share: float):
         """An object's outline on the table (its xy hull) as the camera sees it with ``share`` of its error."""
-        import shapely
-
         R_BG, p_BG = seen_in_body(R, share * item.offset)
         P = R @ (R_BG @ item.points + p_BG[:, None]) + p[:, None]
         return shapely.convex_hull(shapely.MultiPoint(P[:2].T))
@@ -312,8 +311,6 @@ class SeenPoses:
     def shares(self, p: np.ndarray, R: np.ndarray) -> np.ndarray:
         """The share of its error each object is seen with, its body at ``p[k]``, ``R[k]``: 1,
         or less where its image and a neighbour's would overlap more than their bodies do."""
-        import shapely
-
         low = np.flatnonzero(p[:, 2] < self.LOW_M)
         body = {k: self._outline(self.items[k], p[k], R[k], 0.0) for k in low}
         seen = {k: self._outline(self.items[k], p[k], R[k], 1.0) for k in low}

@@ -102,11 +102,8 @@ def bench_perception(
 
 class _Rendered:
     def __init__(self, scene, laid, parted):
-        self.scene, self.laid, self.parted = (
-            scene,
-            laid,
-            parted,
-        )  # parted: objects seen with a share of their error
+        # parted: the objects seen with a share of their pose error (`SeenPoses`)
+        self.scene, self.laid, self.parted = scene, laid, parted
 
 
 def _render_table(sc, k: int, toppled: int):
