@@ -75,7 +75,8 @@ def attempts(folder):
     shapes, what it meant to take, what it took, its planning time, its outcome, and how many
     objects its open jaws came down on and how far onto the deepest (mm; ground truth; None in
     sweeps from before it was recorded), and how many objects lying in view its scene had
-    nothing for (``unseen``; 0 also in sweeps from before v54, which did not record it)."""
+    nothing for (``unseen``; 0 also in sweeps from before v54, which did not record it), and
+    whether its decision was a last resort (``last_resort``: no grasp within the planner's cap)."""
     pd = _pd()
     rows = []
     for r in _records(folder):
@@ -101,6 +102,7 @@ def attempts(folder):
                     else max(a["jaws_on"].values(), default=0.0),
                     "approach_force": a.get("approach_force"),
                     "unseen": len(a.get("unseen") or ()),
+                    "last_resort": bool(a.get("last_resort")),
                 }
             )
     return pd.DataFrame(rows)

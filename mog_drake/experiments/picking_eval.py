@@ -193,6 +193,13 @@ def summarize(results: list[dict], modes) -> dict:
         if blind:
             row["unseen_attempts"] = len(blind)
             row["unseen_failed"] = sum(not a.get("picked") for a in blind)
+        # The last resort's grasps (no grasp within the planner's cap: a robust check relaxed,
+        # or more physics checks) against the others: where a robust planner's success is lost.
+        last = [bool(a.get("last_resort")) for r in runs for a in r["attempts"]]
+        if any(last):
+            taken = [bool(a.get("picked")) for r in runs for a in r["attempts"]]
+            row["last_resort"] = [sum(t for t, x in zip(taken, last) if x), sum(last)]
+            row["first_pass"] = [sum(t for t, x in zip(taken, last) if not x), len(last) - sum(last)]
         rows.append(row)
     pph = {r["mode"]: r["pph"] for r in rows}
     ratio = pph["mog"] / pph["sog"] if "mog" in pph and pph.get("sog") else float("nan")
@@ -318,6 +325,13 @@ def losses_text(summary: dict) -> str:
             lines.append(
                 f"{r['mode']}: {r['unseen_attempts']} attempts planned on a scene that had nothing for an "
                 f"object lying in view, {r['unseen_failed']} of them failed"
+            )
+        if r.get("last_resort"):
+            (lt, ln), (ft, fn) = r["last_resort"], r["first_pass"]
+            lines.append(
+                f"{r['mode']}: the last resort's grasps took objects {lt} of {ln} times "
+                f"({100 * lt / ln:.0f} %), the others {ft} of {fn}"
+                + (f" ({100 * ft / fn:.0f} %)" if fn else "")
             )
         if r.get("lone"):
             lines.append(

@@ -136,3 +136,37 @@ def test_the_summary_counts_attempts_planned_blind_to_an_object_in_view():
     run["attempts"] = [attempt(1)]
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert "unseen_attempts" not in row
+
+
+def test_the_summary_splits_the_last_resort_s_grasps_from_the_others():
+    """Attempts whose decision was a last resort (`PickDecision.last_resort`) are counted per
+    mode apart from the others, each with how many took an object, and named in the losses'
+    lines; sweeps with no last resort print nothing of it."""
+    from mog_drake.experiments import picking_eval
+
+    def attempt(picked, last_resort=False):
+        return {
+            "start": 0.0,
+            "end": 1.0,
+            "group": [0],
+            "picked": picked,
+            "carried": [0] if picked else [],
+            **({"last_resort": True} if last_resort else {}),
+        }
+
+    run = {
+        "mode": "mog",
+        "scene_seed": 0,
+        "summary": {"success_rate": 0.6, "picked_pct": 50.0, "pph": 100.0, "objects_per_success": 1.0},
+        "attempts": [attempt(1), attempt(0, True), attempt(2, True), attempt(1), attempt(0)],
+    }
+    (row,) = picking_eval.summarize([run], ["mog"])["rows"]
+    assert (row["last_resort"], row["first_pass"]) == ([1, 2], [2, 3])
+    assert (
+        "mog: the last resort's grasps took objects 1 of 2 times (50 %), the others 2 of 3 (67 %)"
+        in picking_eval.losses_text({"rows": [row]})
+    )
+    run["attempts"] = [attempt(1), attempt(0)]
+    (row,) = picking_eval.summarize([run], ["mog"])["rows"]
+    assert "last_resort" not in row
+    assert "last resort" not in picking_eval.losses_text({"rows": [row]})
