@@ -106,34 +106,37 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     assert not (tmp_path / "x").exists()  # refused before anything was written
 
 
+def _attempt(picked: int, **recorded) -> dict:
+    """One attempt's record as the pick loop stores it, with ``recorded`` fields added."""
+    return {
+        "start": 0.0,
+        "end": 1.0,
+        "group": [0],
+        "picked": picked,
+        "carried": [0] if picked else [],
+        **recorded,
+    }
+
+
+def _run(attempts: list[dict]) -> dict:
+    """One mog table's record holding ``attempts`` (the summary's numbers are not read here)."""
+    summary = {"success_rate": 0.5, "picked_pct": 50.0, "pph": 100.0, "objects_per_success": 1.0}
+    return {"mode": "mog", "scene_seed": 0, "summary": summary, "attempts": attempts}
+
+
 def test_the_summary_counts_attempts_planned_blind_to_an_object_in_view():
     """Attempts whose scene had nothing for an object lying in view (`scoring.unseen`) are
     counted per mode, with how many of them failed, and named in the losses' lines."""
     from mog_drake.experiments import picking_eval
 
-    def attempt(picked, unseen=None):
-        return {
-            "start": 0.0,
-            "end": 1.0,
-            "group": [0],
-            "picked": picked,
-            "carried": [0] if picked else [],
-            **({"unseen": unseen} if unseen else {}),
-        }
-
-    run = {
-        "mode": "mog",
-        "scene_seed": 0,
-        "summary": {"success_rate": 0.5, "picked_pct": 50.0, "pph": 100.0, "objects_per_success": 1.0},
-        "attempts": [attempt(1), attempt(0, [3]), attempt(1, [3, 4]), attempt(1)],
-    }
+    run = _run([_attempt(1), _attempt(0, unseen=[3]), _attempt(1, unseen=[3, 4]), _attempt(1)])
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert (row["unseen_attempts"], row["unseen_failed"]) == (2, 1)
     assert (
         "mog: 2 attempts planned on a scene that had nothing for an object lying in view, 1 of them failed"
         in (picking_eval.losses_text({"rows": [row]}))
     )
-    run["attempts"] = [attempt(1)]
+    run["attempts"] = [_attempt(1)]
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert "unseen_attempts" not in row
 
@@ -144,29 +147,15 @@ def test_the_summary_splits_the_last_resort_s_grasps_from_the_others():
     lines; sweeps with no last resort print nothing of it."""
     from mog_drake.experiments import picking_eval
 
-    def attempt(picked, last_resort=False):
-        return {
-            "start": 0.0,
-            "end": 1.0,
-            "group": [0],
-            "picked": picked,
-            "carried": [0] if picked else [],
-            **({"last_resort": True} if last_resort else {}),
-        }
-
-    run = {
-        "mode": "mog",
-        "scene_seed": 0,
-        "summary": {"success_rate": 0.6, "picked_pct": 50.0, "pph": 100.0, "objects_per_success": 1.0},
-        "attempts": [attempt(1), attempt(0, True), attempt(2, True), attempt(1), attempt(0)],
-    }
+    last = {"last_resort": True}
+    run = _run([_attempt(1), _attempt(0, **last), _attempt(2, **last), _attempt(1), _attempt(0)])
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert (row["last_resort"], row["first_pass"]) == ([1, 2], [2, 3])
     assert (
         "mog: the last resort's grasps took objects 1 of 2 times (50 %), the others 2 of 3 (67 %)"
         in picking_eval.losses_text({"rows": [row]})
     )
-    run["attempts"] = [attempt(1), attempt(0)]
+    run["attempts"] = [_attempt(1), _attempt(0)]
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert "last_resort" not in row
     assert "last resort" not in picking_eval.losses_text({"rows": [row]})
