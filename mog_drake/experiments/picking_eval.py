@@ -268,7 +268,6 @@ def run(
 WAIT_KINDS = {  # a decision's ``lookahead``: "merged" in sweeps made while the board existed
     "first": "a table's first decision",
     "used": "lookahead in time",
-    "late": "lookahead late, waited for",
     "merged": "lookahead late, its board read",
     "dropped": "lookahead late, dropped",
     "": "no lookahead",

@@ -181,12 +181,10 @@ class LookaheadConfig:
     where they were (3 mm) is replayed from that plan with no physics: its failure, or its
     grasp. Only the groups the grasp disturbed are simulated again. In push-mog it considers
     pushes too: a push that paid is replayed, with its grasp. A lookahead not done when the
-    next image comes is dropped (reading its verdicts as they came did not pay:
-    docs/experiments.md), or with ``wait_late`` waited for, unless the grasp before took none
-    of its objects (the table is not the one it planned)."""
+    next image comes is dropped (reading its verdicts as they came, and waiting for it, were
+    tried and did not pay: docs/experiments.md)."""
 
     enabled: bool = True
-    wait_late: bool = False
 
 
 @dataclass

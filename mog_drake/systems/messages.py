@@ -74,8 +74,8 @@ class Decision(Immutable):
     # The last few grasps that took none of their objects (`picking.missed`), as of its image:
     # their jaws' footprints are kept clear (`planner.jaw_obstacles`).
     missed_grasps: tuple = ()
-    # The lookahead's memory for this plan: "used" (visible at its image), "late" (waited for:
-    # lookahead.wait_late), "dropped" (not in time), or "" (none ran).
+    # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
+    # time), or "" (none ran).
     lookahead: str = ""
 
 

@@ -107,22 +107,8 @@ class PlannerSystem(LeafSystem):
         p = self._scene.Eval(context)
         cur = state.get_mutable_abstract_state(self._state).get_value()
         last = job.counter if job is not None else cur.counter
-        if job is None and p.scene is not None and p.counter > last and not self._late(p, cur, t, state):
+        if job is None and p.scene is not None and p.counter > last:
             self._decide(p, cur, t, state)
-
-    def _late(self, p: Perceived, cur: Decision, t: float, state) -> bool:
-        """With ``lookahead.wait_late``: whether the new image waits for the lookahead, still
-        running, of the decision it follows (not after a retake, nor after a grasp that took
-        none of its objects: the table is not the one the lookahead planned)."""
-        if not self._spec.lookahead.wait_late or p.retake:
-            return False
-        ahead = state.get_abstract_state(self._ahead).get_value().job
-        return (
-            ahead is not None
-            and ahead.counter == cur.counter
-            and not ahead.visible(t, self._latency, self._block)
-            and not missed(cur.targets, p.scene)
-        )
 
     def _collect(self, job, t: float, state) -> None:
         """A decision became visible: it is the state now, and a lookahead starts after a grasp."""
@@ -197,8 +183,7 @@ class PlannerSystem(LeafSystem):
             # grasped since); else it is dropped, and its thread finishes it unused.
             used = "dropped"
             if ahead.counter == cur.counter and ahead.visible(t, self._latency, self._block):
-                memory = ahead.result()
-                used = "late" if ahead.t_visible(self._latency) > p.t_visible + 1e-9 else "used"
+                memory, used = ahead.result(), "used"
             state.get_mutable_abstract_state(self._ahead).set_value(Slot())
         # Objects the robot grasped MAX_MISSES times without taking them are not planned again.
         misses, given_up = tally_misses(base.misses, base.targets, p.scene)
