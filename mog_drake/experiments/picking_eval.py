@@ -265,10 +265,11 @@ def run(
     return summary, results
 
 
-WAIT_KINDS = {  # a decision's ``lookahead``: "merged" in sweeps made while the board existed
+WAIT_KINDS = {  # a decision's ``lookahead``: "merged" and "late" in sweeps of mechanisms since removed
     "first": "a table's first decision",
     "used": "lookahead in time",
     "merged": "lookahead late, its board read",
+    "late": "lookahead late, waited for",
     "dropped": "lookahead late, dropped",
     "": "no lookahead",
 }
