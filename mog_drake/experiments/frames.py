@@ -118,18 +118,30 @@ def paired(folder_a, folder_b):
     return pd.DataFrame(doc["rows"])
 
 
-def study(levels: dict):
+def study(levels: dict, common: bool = True):
     """The uncertainty study: {level: sweep folder} -> one row per level and mode (success %,
-    picked %, objects per successful grasp, PPH, with their 95 % intervals)."""
+    picked %, objects per successful grasp, PPH, with their 95 % intervals). ``common``: each
+    mode on the tables every level ran it on, so that the levels differ in their uncertainty
+    alone (a table's own draws move its success by tens of points); else each level on all
+    its tables."""
     from mog_drake.experiments.picking_eval import summarize
 
     pd = _pd()
+    runs = {level: _records(folder) for level, folder in levels.items()}
+    runs = {level: res for level, res in runs.items() if res}
+    shared = {}
+    if common and runs:
+        for m in {r["mode"] for res in runs.values() for r in res}:
+            tables = [{r["scene"] for r in res if r["mode"] == m} for res in runs.values()]
+            shared[m] = set.intersection(*tables)
     rows = []
-    for level, folder in levels.items():
-        res = _records(folder)
-        if not res:
+    for level, res in runs.items():
+        if common:
+            res = [r for r in res if r["scene"] in shared[r["mode"]]]
+        modes = sorted({r["mode"] for r in res})
+        if not modes:
             continue
-        for row in summarize(res, sorted({r["mode"] for r in res}))["rows"]:
+        for row in summarize(res, modes)["rows"]:
             rows.append({"level": level, **row})
     return pd.DataFrame(rows)
 

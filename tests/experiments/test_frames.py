@@ -49,3 +49,36 @@ def test_an_attempt_stopped_on_the_way_down_is_its_own_outcome():
     stopped = {"group": [0], "picked": 0, "carried": [], "held_width": None, "stopped": {"force": 52.0}}
     assert frames.outcome(stopped) == "stopped on the way down"
     assert frames.outcome({**stopped, "stopped": None}) == "closed on nothing"
+
+
+def _run(scene, mode, success):
+    attempts = [{"start": 0.0, "group": [0], "picked": 1}]
+    summary = {
+        "objects": 1,
+        "attempts": 1,
+        "success_rate": success,
+        "picked_pct": 100.0,
+        "objects_per_success": 1.0,
+        "pph": 100.0,
+    }
+    return {"key": f"s{scene}-{mode}", "scene": scene, "mode": mode, "summary": summary, "attempts": attempts}
+
+
+def test_the_study_compares_levels_on_the_tables_each_mode_ran_at_every_level(tmp_path):
+    from mog_drake.experiments import frames
+
+    # Level 1 ran mog on tables 0-2 and sog on 0; level 2 mog on 0-1 and sog on 0-1.
+    ladder = {1: [(0, "mog", 1.0), (1, "mog", 1.0), (2, "mog", 0.0), (0, "sog", 0.5)],
+              2: [(0, "mog", 0.5), (1, "mog", 0.5), (0, "sog", 0.25), (1, "sog", 0.0)]}  # fmt: skip
+    folders = {}
+    for level, runs in ladder.items():
+        folders[level] = tmp_path / f"level{level}"
+        folders[level].mkdir()
+        (folders[level] / "results.jsonl").write_text("".join(json.dumps(_run(*r)) + "\n" for r in runs))
+    rows = {(r["level"], r["mode"]): r for r in frames.study(folders).to_dict("records")}
+    assert rows[1, "mog"]["scenes"] == 2 and rows[1, "mog"]["success_rate"] == 100.0  # table 2 left out
+    assert rows[2, "mog"]["success_rate"] == 50.0
+    assert rows[1, "sog"]["scenes"] == rows[2, "sog"]["scenes"] == 1  # table 0 alone
+    assert rows[2, "sog"]["success_rate"] == 25.0
+    every = {(r["level"], r["mode"]): r for r in frames.study(folders, common=False).to_dict("records")}
+    assert every[1, "mog"]["scenes"] == 3 and every[2, "sog"]["scenes"] == 2
