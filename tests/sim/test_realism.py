@@ -185,7 +185,7 @@ def test_two_bars_side_by_side_are_never_seen_one_inside_the_other():
     from mog_drake.camera import camera_pose
     from mog_drake.sim.models import prism_points
     from mog_drake.station import MakeStation, render_still
-    from mog_drake.station.sim import SeenPoses
+    from mog_drake.station.seen import SeenPoses
 
     th = 0.4
     across = np.array([-np.sin(th), np.cos(th)])  # each bar's own y axis

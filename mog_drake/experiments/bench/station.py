@@ -25,7 +25,7 @@ def bench_perception(
     """Perception accuracy on rendered cluttered isrr33 tables (seeds seed .. seed+tables-1):
         objects found, missed and extra, unrecognised blobs, median and worst position (mm) and yaw
         error (deg, modulo the shape's symmetry), the objects seen with a share of their pose
-        error (``parted``: `station.sim.SeenPoses`), and wall time per image: ``time_s`` the median of
+        error (``parted``: `station.seen.SeenPoses`), and wall time per image: ``time_s`` the median of
         ``repeats`` perceptions of the image (the steady state of a camera feeding frames; one run
         alone varies by tens of percent on a shared machine), ``first_s`` the first of them (cold
         caches), ``cpu_s`` the median CPU time (the process's: on a busy machine, what a quiet one
