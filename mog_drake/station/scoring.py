@@ -138,3 +138,77 @@ def finger_forces(plant, scene_graph, plant_context, fingers: set, bodies: set) 
             if body in bodies and other in fingers:
                 total[body] = total.get(body, np.zeros(3)) + f
     return {b: float(np.linalg.norm(f)) for b, f in total.items()}
+
+
+class AttemptScoring:
+    """Ground truth about each attempt of a simulated pick run, read from the plant between the
+    Simulator's advances (never by the application): `observe` after every advance, `score`
+    once an attempt has ended and what it dropped has landed. ``gone``: the objects retired
+    from the bin (`BinRetirement.retired`, kept up to date by its owner)."""
+
+    def __init__(self, handles, scenario: Scenario, perception, root_context, gone=()):
+        self.handles, self.scenario, self.gone = handles, scenario, gone
+        self.perception = perception
+        self.perception_context = perception.GetMyContextFromRoot(root_context)
+        self.plant_context = handles.plant.GetMyContextFromRoot(root_context)
+        self.fingers = handles.finger_indices()
+        self.objects = {b.index() for b in handles.bodies.values()}
+        self.carried: dict[int, list[int]] = {}  # attempt -> objects in the air on the way to the bin
+        self.landed: dict[int, dict] = {}  # attempt -> objects under its open jaws (`jaws_land_on`)
+        self.pressed: dict[
+            int, float
+        ] = {}  # attempt -> the largest force its open fingers put on an object (N)
+        self.missed: dict[int, list] = {}  # attempt -> objects in view its scene had nothing for (`unseen`)
+        self.in_bin = 0  # objects in the bin when the last attempt was scored
+
+    def _in_bin(self) -> list[int]:
+        h = self.handles
+        return objects_in_bin(h.plant, self.plant_context, h.bodies, self.scenario, self.gone)
+
+    def observe(self, state) -> None:
+        """The controller's ``state`` after an advance: where the jaws of an attempt that just
+        began its approach come down and what its scene missed, the force its open fingers
+        put on objects on the way down, and what it lifted once it leaves for the bin."""
+        if not state.attempts:
+            return
+        h, ctx, k = self.handles, self.plant_context, len(state.attempts) - 1
+        if state.mode == "approach":
+            if k not in self.landed:
+                perceived = self.perception.GetOutputPort("scene").Eval(self.perception_context).scene
+                if perceived is not None:
+                    away = set(self.gone) | set(self._in_bin())
+                    self.missed[k] = unseen(
+                        h.plant, ctx, h.bodies, h.scene, perceived, self.scenario, skip=away
+                    )
+                grasp = state.attempts[-1]["grasp"]
+                self.landed[k] = jaws_land_on(
+                    h.plant, ctx, h.bodies, h.scene, grasp, gripper=GripperGeometry(), skip=self.gone
+                )
+            on = finger_forces(h.plant, h.scene_graph, ctx, self.fingers, self.objects)
+            self.pressed[k] = max(self.pressed.get(k, 0.0), *on.values(), 0.0)
+        elif state.mode == "to_bin" and k not in self.carried:
+            old = set(self._in_bin())
+            self.carried[k] = [
+                int(i)
+                for i, b in h.bodies.items()
+                if i not in old and h.plant.EvalBodyPoseInWorld(ctx, b).translation()[2] > 0.08
+            ]
+
+    def score(self, k: int, attempt: dict) -> None:
+        """Completes attempt ``k``'s record ``attempt`` in place: objects it put in the bin
+        (``picked``) and the bin's count, what it lifted (``carried``: seen in the air as the arm
+        left for the bin; those not in the bin fell on the way), where its open jaws came down
+        (``jaws_on``: {object: how far a plate landed on it, mm}), the largest force its open
+        fingers put on an object on the way down (``approach_force``, N, sampled at each
+        advance: a real arm stops at its force limit, a UR5's 150 N), and the objects in view
+        that the scene it was planned on had nothing for (``unseen``, when any)."""
+        now = len(self._in_bin())
+        attempt["picked"], attempt["in_bin"] = now - self.in_bin, now
+        attempt["carried"] = self.carried.get(k)
+        attempt["carried_shapes"] = [self.handles.scene.objects[i].shape for i in attempt["carried"] or ()]
+        on = self.landed.get(k)
+        attempt["jaws_on"] = None if on is None else {str(i): round(1e3 * d, 2) for i, d in on.items()}
+        attempt["approach_force"] = round(self.pressed.get(k, 0.0), 1)
+        if self.missed.get(k):
+            attempt["unseen"] = self.missed[k]
+        self.in_bin = now

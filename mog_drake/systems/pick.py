@@ -12,13 +12,13 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from mog_drake.camera import camera_pose
 from mog_drake.errors import HardwareFault, StationFault, stop_on_signals
-from mog_drake.geometry.gripper import OPEN_WIDTH, GripperGeometry
+from mog_drake.geometry.gripper import OPEN_WIDTH
 from mog_drake.planning.planner import GraspPlanner
 from mog_drake.scenario import Scenario, scenario_yaml
 from mog_drake.station import MakeStation
 from mog_drake.station.fault import fault_line, save_fault
 from mog_drake.station.ports import PORTS_IN
-from mog_drake.station.scoring import finger_forces, jaws_land_on, objects_in_bin, unseen, where_left
+from mog_drake.station.scoring import AttemptScoring, objects_in_bin, where_left
 from mog_drake.station.speed import BinRetirement
 from mog_drake.systems.controller import ControllerSystem
 from mog_drake.systems.motion import ArmMotion
@@ -254,15 +254,7 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
     if meshcat is not None:
         meshcat.StartRecording()
     done_attempts = done_pushes = 0
-    in_bin_before = 0
-    carried: dict[int, list[int]] = {}  # attempt index -> objects in the air on the way to the bin
-    landed: dict[int, dict] = {}  # attempt index -> objects under its open jaws (`jaws_land_on`)
-    pressed: dict[int, float] = {}  # attempt index -> the largest force its open fingers put on an object (N)
-    missed: dict[int, list] = {}  # attempt index -> objects in view its scene had nothing for (`unseen`)
-    perception_ctx = parts.perception.GetMyContextFromRoot(ctx)
-    if scored:
-        fingers = handles.finger_indices()
-        objects = {b.index() for b in handles.bodies.values()}
+    scoring = AttemptScoring(handles, scenario, parts.perception, ctx, gone) if scored else None
     good = None  # (time, the plant's state) last seen finite: a fault's report says where it began
     while True:
         if scored and np.all(np.isfinite(x := handles.plant.GetPositionsAndVelocities(plant_ctx))):
@@ -283,59 +275,15 @@ def _run(scenario, diagram, parts, meshcat, on_attempt, realtime, *, retire_binn
         if seen:
             seen.update(ctx)
         s = controller.state(ctrl_ctx)
-        if scored and s.mode == "approach" and len(s.attempts) - 1 not in landed and s.attempts:
-            k = len(s.attempts) - 1
-            perceived = parts.perception.GetOutputPort("scene").Eval(perception_ctx).scene
-            if perceived is not None:
-                away = set(gone) | set(
-                    objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
-                )
-                missed[k] = unseen(
-                    handles.plant, plant_ctx, handles.bodies, handles.scene, perceived, scenario, skip=away
-                )
-            landed[k] = jaws_land_on(
-                handles.plant,
-                plant_ctx,
-                handles.bodies,
-                handles.scene,
-                s.attempts[-1]["grasp"],
-                gripper=GripperGeometry(),
-                skip=gone,
-            )
-        if scored and s.mode == "approach" and s.attempts:
-            on = finger_forces(handles.plant, handles.scene_graph, plant_ctx, fingers, objects)
-            k = len(s.attempts) - 1
-            pressed[k] = max(pressed.get(k, 0.0), *on.values(), 0.0)
-        if scored and s.mode == "to_bin" and len(s.attempts) - 1 not in carried:
-            old = set(objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone))
-            carried[len(s.attempts) - 1] = [
-                int(i)
-                for i, b in handles.bodies.items()
-                if i not in old and handles.plant.EvalBodyPoseInWorld(plant_ctx, b).translation()[2] > 0.08
-            ]
+        if scoring:
+            scoring.observe(s)
         finished = s.mode == "done" or ctx.get_time() > scenario.time_limit + 30.0
         while done_attempts < len(s.attempts) and "end" in s.attempts[done_attempts]:
             if scored and ctx.get_time() < s.attempts[done_attempts]["end"] + LANDING_S:
                 break  # what it dropped is still falling
             a = dict(s.attempts[done_attempts])
-            if scored:
-                now = objects_in_bin(handles.plant, plant_ctx, handles.bodies, scenario, gone)
-                a["picked"] = len(now) - in_bin_before
-                a["in_bin"] = len(now)
-                # Lifted from the table (seen in the air as the arm left for the bin); those
-                # not in the bin at the end fell on the way.
-                a["carried"] = carried.get(done_attempts)
-                a["carried_shapes"] = [handles.scene.objects[i].shape for i in a["carried"] or ()]
-                # Where its open jaws came down: {object: how far a plate landed on it (mm)}.
-                on = landed.get(done_attempts)
-                a["jaws_on"] = None if on is None else {str(i): round(1e3 * d, 2) for i, d in on.items()}
-                # The largest force the open fingers put on any object on the way down (N),
-                # sampled every `step`: a real arm stops at its force limit (UR5: 150 N).
-                a["approach_force"] = round(pressed.get(done_attempts, 0.0), 1)
-                # Objects in view that the perceived scene it was planned on had nothing for.
-                if missed.get(done_attempts):
-                    a["unseen"] = missed[done_attempts]
-                in_bin_before = len(now)
+            if scoring:
+                scoring.score(done_attempts, a)
             else:
                 a["picked"] = a["in_bin"] = a["carried"] = None
                 # What the gripper lost while this attempt carried it (hardware: OBJ 2 -> 3).
