@@ -153,12 +153,13 @@ class AttemptScoring:
         self.plant_context = handles.plant.GetMyContextFromRoot(root_context)
         self.fingers = handles.finger_indices()
         self.objects = {b.index() for b in handles.bodies.values()}
-        self.carried: dict[int, list[int]] = {}  # attempt -> objects in the air on the way to the bin
-        self.landed: dict[int, dict] = {}  # attempt -> objects under its open jaws (`jaws_land_on`)
-        self.pressed: dict[
-            int, float
-        ] = {}  # attempt -> the largest force its open fingers put on an object (N)
-        self.missed: dict[int, list] = {}  # attempt -> objects in view its scene had nothing for (`unseen`)
+        # Per attempt: the objects in the air on the way to the bin; those under its open jaws
+        # (`jaws_land_on`); the largest force its open fingers put on an object (N); the objects
+        # in view its scene had nothing for (`unseen`).
+        self.carried: dict[int, list[int]] = {}
+        self.landed: dict[int, dict] = {}
+        self.pressed: dict[int, float] = {}
+        self.missed: dict[int, list] = {}
         self.in_bin = 0  # objects in the bin when the last attempt was scored
 
     def _in_bin(self) -> list[int]:
