@@ -175,12 +175,14 @@ class PushConfig:
 
 @dataclass
 class LookaheadConfig:
-    """Planning ahead (mog and push-mog, with loop.remember_failures): once a grasp is decided,
-    the next decision is planned on the same image without the objects it grasps, on a second
-    worker, while the arm executes it. In the next image, every group whose surroundings are
-    where they were (3 mm) is replayed from that plan with no physics: its failure, or its
-    grasp. Only the groups the grasp disturbed are simulated again. In push-mog it considers
-    pushes too: a push that paid is replayed, with its grasp. A lookahead not done when the
+    """Planning ahead (with loop.remember_failures): once a grasp is decided, the next decision
+    is planned on the same image without the objects it grasps, on a second worker, while the
+    arm executes it. In the next image, every group whose surroundings are where they were
+    (3 mm) is replayed from that plan with no physics: its failure, or its grasp. Only the
+    groups the grasp disturbed are simulated again. In push-mog it considers pushes too: a
+    push that paid is replayed, with its grasp. In sog the object whose grasp it found is
+    tried first (`next_pick`): it drew that object at random, one image earlier, as the
+    decision itself would have. A lookahead not done when the
     next image comes is dropped (reading its verdicts as they came, and waiting for it, were
     tried and did not pay: docs/experiments.md)."""
 

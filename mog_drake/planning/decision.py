@@ -95,6 +95,24 @@ def _match(old: tuple, new: tuple, tol: float = MEMORY_TOL) -> dict[int, int] | 
     return ids
 
 
+def drawn_first(groups: list, memory, scene) -> list:
+    """sog's ``groups`` (single objects in a random order) with the object whose grasp the
+    lookahead found (`lookahead`: the first found grasp in ``memory``) first, if it lies where
+    it was then (every vertex within MEMORY_TOL); else ``groups`` as they are. Its grasp is
+    replayed (`recall`) only if nothing within its reach moved either."""
+    for f in memory:
+        if not (isinstance(f, FailedGroup) and f.result.found):
+            continue
+        if len(f.group) != 1:
+            return groups
+        old = next(((i, shape, v) for i, shape, v in f.around if i == f.group[0]), None)
+        for j, o in enumerate(scene.objects if old is not None else ()):
+            if _match((old,), ((j, o.shape, scene.polygon(j)),)) is not None:
+                return [(j,)] + [g for g in groups if g != (j,)]
+        return groups
+    return groups
+
+
 def same_group(f_group, f_around, group, around) -> dict[int, int] | None:
     """Old id -> new id if ``f_group`` with ``f_around`` around it (as `around_group` gives) is
     ``group`` now, every object around it where it was (``around``, now); else None."""

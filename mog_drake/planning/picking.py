@@ -56,6 +56,7 @@ from mog_drake.planning.decision import (
     PaidPush,
     PickDecision,
     around_group,
+    drawn_first,
     recall,
 )
 from mog_drake.planning.planner import GraspPlanner
@@ -127,6 +128,8 @@ def next_pick(
         if rng is None:
             raise MogError("single-object picking draws objects at random: pass a seeded numpy Generator")
         groups = [(int(i),) for i in rng.permutation(len(scene))]
+        if failures:  # the lookahead drew its object at random one image earlier: it goes first
+            groups = drawn_first(groups, failures, scene)
     if len(exclude):
         groups = _excluding(groups, exclude)
         if not groups:

@@ -71,10 +71,7 @@ class PlannerSystem(LeafSystem):
         self._worker = Worker("planner", clock_of(latency))
         self._ahead_worker = Worker("lookahead", clock_of(latency))
         self._lookahead = (
-            ahead_planner is not None
-            and self._spec.lookahead.enabled
-            and self._spec.loop.remember_failures
-            and self._spec.mode in ("mog", "push-mog")
+            ahead_planner is not None and self._spec.lookahead.enabled and self._spec.loop.remember_failures
         )
         self._scene = self.DeclareAbstractInputPort("scene", AbstractValue.Make(Perceived()))
         self._state = self.DeclareAbstractState(

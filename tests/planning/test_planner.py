@@ -609,6 +609,60 @@ def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_
     assert first.objects[grasped] != o
 
 
+def test_in_sog_the_object_the_lookahead_drew_is_tried_first_and_its_grasp_replayed():
+    """Single-object picking draws objects in a random order until one has a grasp. Its
+    lookahead draws on the table without the grasped object; in the next image (ids in another
+    order, the decision's own draw another) the object it found a grasp for is tried first and
+    taken with no physics check. Moved 5 mm, that object is no longer the one drawn."""
+    from dataclasses import replace
+
+    from mog_drake.planning.config import PlannerSpec
+    from mog_drake.planning.lookahead import lookahead
+    from mog_drake.planning.picking import next_pick
+
+    shapes = [
+        ("small_yellow_cube", 0.0, 0.0, 0.0),
+        ("large_hexagon", 0.15, 0.1, 0.3),
+        ("blue_pentagon", -0.12, 0.12, 0.2),
+        ("thick_bar", 0.1, -0.15, 1.0),
+    ]
+
+    class LiftsAnything(FakeVerifier):
+        def check(self, scene, group, grasp):
+            self.asked.append(tuple(group))
+            return GraspResult(True, lifted=list(group))
+
+    v = LiftsAnything()
+    planner = GraspPlanner(v, PlannerSpec().grasp)
+    spec = PlannerSpec(mode="sog")
+    first = make_scene(shapes)
+    d1 = next_pick(first, planner, spec, np.random.default_rng(0), failures=())
+    memory = lookahead(first, d1, planner, spec, np.random.default_rng(1))
+    rest = [o for i, o in enumerate(first.objects) if i != d1.group[0]]
+    assert memory[0].result.found
+    drawn = rest[memory[0].group[0]]
+
+    left = rest[::-1]
+    for seed in range(6):  # whatever the decision's own draw
+        v.asked.clear()
+        d2 = next_pick(
+            replace(first, objects=left), planner, spec, np.random.default_rng(seed), failures=memory
+        )
+        assert v.asked == [] and d2.physics_checks == 0 and d2.remembered == 1
+        assert left[d2.group[0]] == drawn
+
+    moved = [replace(o, x=o.x + 0.005) if o == drawn else o for o in left]
+    firsts = set()
+    for seed in range(6):
+        v.asked.clear()
+        d3 = next_pick(
+            replace(first, objects=moved), planner, spec, np.random.default_rng(seed), failures=memory
+        )
+        assert d3.remembered == 0 and len(v.asked) == 1
+        firsts.add(moved[d3.group[0]].shape)
+    assert len(firsts) > 1  # the decision's own random order again
+
+
 def test_clear_of_boxes_agrees_with_shapely_on_the_open_gripper_footprint():
     """The separating-axis test against the exact overlap of the gripper's footprint (both
     jaws and S between them) with a box, on random grasps around it, touching excepted."""
