@@ -100,16 +100,14 @@ def drawn_first(groups: list, memory, scene) -> list:
     lookahead found (`lookahead`: the first found grasp in ``memory``) first, if it lies where
     it was then (every vertex within MEMORY_TOL); else ``groups`` as they are. Its grasp is
     replayed (`recall`) only if nothing within its reach moved either."""
-    for f in memory:
-        if not (isinstance(f, FailedGroup) and f.result.found):
-            continue
-        if len(f.group) != 1:
-            return groups
-        old = next(((i, shape, v) for i, shape, v in f.around if i == f.group[0]), None)
-        for j, o in enumerate(scene.objects if old is not None else ()):
-            if _match((old,), ((j, o.shape, scene.polygon(j)),)) is not None:
-                return [(j,)] + [g for g in groups if g != (j,)]
+    found = next((f for f in memory if isinstance(f, FailedGroup) and f.result.found), None)
+    if found is None or len(found.group) != 1:
         return groups
+    # `around_group` holds the group's own objects: the drawn one, where it was then
+    old = next(a for a in found.around if a[0] == found.group[0])
+    for j, o in enumerate(scene.objects):
+        if o.shape == old[1] and _match((old,), ((j, o.shape, scene.polygon(j)),)) is not None:
+            return [(j,)] + [g for g in groups if g != (j,)]
     return groups
 
 
