@@ -81,10 +81,10 @@ def evaluate(
 
                 load_scenario(o["scenario"])  # refuses a bad file before anything runs
                 scenario = read_text(scenario_path(o["scenario"]), "scenario file")
-            from mog_drake.experiments.sweep import read_params
+            from mog_drake.experiments.sweep import read_params, same_param
 
             recorded = (read_params(out) or {}).get("scenario", "")
-            if recorded == scenario and (out / "sweep.json").exists():
+            if same_param("scenario", recorded, scenario) and (out / "sweep.json").exists():
                 # A sweep made before sweeps defaulted to the CPU clock: read or resumed as it was made.
                 mode = str(scenario_from_text(scenario).latency.mode) if scenario else "measured"
             else:

@@ -114,13 +114,33 @@ def _check_params(out_dir: Path, params: dict, growable: Iterable[str]) -> None:
             f"{out_dir} holds a {old.get('experiment') or 'different'} sweep, not a "
             f"{params.get('experiment')} one: use another --out folder"
         )
-    diff = [k for k in set(old) | set(params) if k not in growable and old.get(k) != params.get(k)]
+    diff = [
+        k
+        for k in set(old) | set(params)
+        if k not in growable and not same_param(k, old.get(k), params.get(k))
+    ]
     if diff:
         k = sorted(diff)[0]
         raise MogError(
             f"{out_dir} holds a sweep with {k}={_short(old.get(k))}, not {_short(params.get(k))}: "
             "use another --out folder"
         )
+
+
+def same_param(key: str, old, new) -> bool:
+    """Whether a recorded parameter equals a new one. A scenario is YAML text: it is the same
+    if it reads as the same document, so that a comment edited in the file after a sweep ran
+    neither orphans the sweep's runs nor refuses its summary."""
+    if old == new:
+        return True
+    if key != "scenario" or not (isinstance(old, str) and isinstance(new, str)):
+        return False
+    import yaml
+
+    try:
+        return yaml.safe_load(old) == yaml.safe_load(new)
+    except yaml.YAMLError:
+        return False
 
 
 def _short(value, n: int = 60) -> str:

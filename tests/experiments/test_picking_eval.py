@@ -99,6 +99,17 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
         picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
     with summary_only(), pytest.raises(MogError, match="holds a sweep with scenario="):
         picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False)
+    # A comment edited in the file after the sweep ran leaves the same scenario: it resumes and
+    # summarises; a value changed does not.
+    edited = "# written after the sweep ran\n" + text.replace("0.045\n", "0.045   # m\n")
+    ran = len(seen)
+    with summary_only():
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=edited)
+    picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=edited)
+    assert len(seen) == ran  # nothing ran again
+    with pytest.raises(MogError, match="holds a sweep with scenario="):
+        picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False,
+                         scenario=edited.replace("0.045", "0.04"))  # fmt: skip
     bad = tmp_path / "bad.yaml"
     bad.write_text("planner:\n  loop:\n    group_radius: -1\n")
     assert main(["eval", "picking", "--scenario", str(bad), "--out", str(tmp_path / "x")]) == 2
