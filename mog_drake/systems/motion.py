@@ -6,6 +6,9 @@ The gripper pose is its palm frame: z up, x along the closing axis, fingertips
 joined by a cubic through them), so the open jaws come down beside the objects, never across.
 """
 
+import contextlib
+import logging
+
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.inverse_kinematics import InverseKinematics
@@ -25,6 +28,19 @@ from mog_drake.sim.ur5 import URDF_PATH, ArmFrames, base_transform, palm_in_flan
 # (m; at least 0.15 m in every pick on the table): a plan that would take one lower is refused.
 LINK_FLOOR = 0.10
 LINKS = ("elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
+
+
+@contextlib.contextmanager
+def _drake_quiet(quiet: bool):
+    """Drake's log shows nothing below CRITICAL inside the block when ``quiet``."""
+    log = logging.getLogger("drake")
+    level = log.level
+    if quiet:
+        log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
 
 
 def wrist_in_band(q, center: float = 0.0) -> np.ndarray:
@@ -148,11 +164,14 @@ class ArmMotion:
                 PiecewisePolynomial.CubicShapePreserving(s, W.T, zero_end_point_derivatives=True),
             ]
         vmax, amax = scale * self.vmax, scale * self.amax
-        for path in paths:
+        for i, path in enumerate(paths):
             toppra = Toppra(path, self.plant, Toppra.CalcGridPoints(path, CalcGridPointsOptions()))
             toppra.AddJointVelocityLimit(-vmax * np.ones(6), vmax * np.ones(6))
             toppra.AddJointAccelerationLimit(-amax * np.ones(6), amax * np.ones(6))
-            s_traj = toppra.SolvePathParameterization()
+            # Drake logs an ERROR when TOPP-RA fails; on every path but the last that failure
+            # is the expected way to the fallback, so it is not shown.
+            with _drake_quiet(i < len(paths) - 1):
+                s_traj = toppra.SolvePathParameterization()
             if s_traj is not None:
                 return PathParameterizedTrajectory(path, s_traj)
         raise MogError("TOPP-RA found no time parameterisation for the arm path")
