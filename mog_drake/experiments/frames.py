@@ -119,15 +119,21 @@ def paired(folder_a, folder_b):
 
 
 def study(levels: dict, common: bool = True):
-    """The uncertainty study: {level: sweep folder} -> one row per level and mode (success %,
-    picked %, objects per successful grasp, PPH, with their 95 % intervals). ``common``: each
+    """The uncertainty study: {level: sweep folder, or {mode: sweep folder} to take each mode
+    from its own sweep} -> one row per level and mode (success %, picked %, objects per
+    successful grasp, PPH, with their 95 % intervals). ``common``: each
     mode on the tables every level ran it on, so that the levels differ in their uncertainty
     alone (a table's own draws move its success by tens of points); else each level on all
     its tables."""
     from mog_drake.experiments.picking_eval import summarize
 
     pd = _pd()
-    runs = {level: _records(folder) for level, folder in levels.items()}
+    runs = {
+        level: [r for m, f in folders.items() for r in _records(f) if r["mode"] == m]
+        if isinstance(folders, dict)
+        else _records(folders)
+        for level, folders in levels.items()
+    }
     runs = {level: res for level, res in runs.items() if res}
     shared = {}
     if common and runs:

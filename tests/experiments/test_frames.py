@@ -82,3 +82,21 @@ def test_the_study_compares_levels_on_the_tables_each_mode_ran_at_every_level(tm
     assert rows[2, "sog"]["success_rate"] == 25.0
     every = {(r["level"], r["mode"]): r for r in frames.study(folders, common=False).to_dict("records")}
     assert every[1, "mog"]["scenes"] == 3 and every[2, "sog"]["scenes"] == 2
+
+
+def test_a_level_may_take_each_mode_from_its_own_sweep(tmp_path):
+    """Every source at one level: mog from one sweep, sog from another that ran both modes
+    (its mog runs are left out)."""
+    from mog_drake.experiments import frames
+
+    sweeps = {
+        "a": [(0, "mog", 1.0), (1, "mog", 0.5), (0, "sog", 1.0)],
+        "b": [(0, "sog", 0.5), (1, "sog", 0.0), (0, "mog", 0.0)],
+    }
+    for name, runs in sweeps.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "results.jsonl").write_text("".join(json.dumps(_run(*r)) + "\n" for r in runs))
+    rows = frames.study({"every": {"mog": tmp_path / "a", "sog": tmp_path / "b"}}).to_dict("records")
+    by_mode = {r["mode"]: r for r in rows}
+    assert set(by_mode) == {"mog", "sog"} and by_mode["mog"]["scenes"] == by_mode["sog"]["scenes"] == 2
+    assert by_mode["mog"]["success_rate"] == 75.0 and by_mode["sog"]["success_rate"] == 25.0
