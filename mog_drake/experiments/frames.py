@@ -35,8 +35,11 @@ def _pd():
 
 
 def _records(folder) -> list[dict]:
+    """A sweep folder's runs; from {mode: folder}, each mode's runs from its own sweep."""
     from mog_drake.experiments.sweep import load_results
 
+    if isinstance(folder, dict):
+        return [r for m, f in folder.items() for r in _records(f) if r["mode"] == m]
     return list(load_results(Path(folder) / "results.jsonl", repair=False).values())
 
 
@@ -71,7 +74,7 @@ def outcome(a: dict) -> str:
 
 
 def attempts(folder):
-    """One row per grasp attempt of a picking sweep: when (simulated s), the group's size and
+    """One row per grasp attempt of a picking sweep (a folder, or {mode: folder}): when (simulated s), the group's size and
     shapes, what it meant to take, what it took, its planning time, its outcome, and how many
     objects its open jaws came down on and how far onto the deepest (mm; ground truth; None in
     sweeps from before it was recorded), and how many objects lying in view its scene had
@@ -128,12 +131,7 @@ def study(levels: dict, common: bool = True):
     from mog_drake.experiments.picking_eval import summarize
 
     pd = _pd()
-    runs = {
-        level: [r for m, f in folders.items() for r in _records(f) if r["mode"] == m]
-        if isinstance(folders, dict)
-        else _records(folders)
-        for level, folders in levels.items()
-    }
+    runs = {level: _records(folder) for level, folder in levels.items()}
     runs = {level: res for level, res in runs.items() if res}
     shared = {}
     if common and runs:

@@ -4,6 +4,7 @@ Everything is built in code from the object library and `GripperGeometry` (the o
 truth for the gripper's sizes), so nothing needs `package://` resolution or a network.
 """
 
+import contextlib
 import copy
 import logging
 from dataclasses import dataclass, field, replace
@@ -48,6 +49,18 @@ class _NoDeformableHalfSpaceWarning(logging.Filter):
 
 
 logging.getLogger("drake").addFilter(_NoDeformableHalfSpaceWarning())
+
+
+@contextlib.contextmanager
+def drake_log_level(level: int):
+    """Drake's log at ``level`` (a `logging` level) inside the block, as it was after it."""
+    log = logging.getLogger("drake")
+    before = log.level
+    log.setLevel(level)
+    try:
+        yield
+    finally:
+        log.setLevel(before)
 
 
 @dataclass

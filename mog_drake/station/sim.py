@@ -40,6 +40,7 @@ from mog_drake.sim.models import (
     add_prism,
     add_table,
     contact_forces,
+    drake_log_level,
     filter_gripper_self_collisions,
     pose_to_transform,
     prism_points,
@@ -492,13 +493,8 @@ def start_meshcat(show: bool):
 
     from pydrake.geometry import StartMeshcat
 
-    drake_log = logging.getLogger("drake")
-    level = drake_log.level
-    drake_log.setLevel(logging.WARNING)
-    try:
+    with drake_log_level(logging.WARNING):
         meshcat = StartMeshcat()
-    finally:
-        drake_log.setLevel(level)
     if show:
         print(f"meshcat: {meshcat.web_url()}", file=sys.stderr)
     return meshcat

@@ -22,25 +22,13 @@ from pydrake.trajectories import PathParameterizedTrajectory, PiecewisePolynomia
 from mog_drake.config import MotionConfig
 from mog_drake.errors import MogError
 from mog_drake.geometry.push import ease, push_duration
+from mog_drake.sim.models import drake_log_level
 from mog_drake.sim.ur5 import URDF_PATH, ArmFrames, base_transform, palm_in_flange
 
 # The arm's links (elbow to flange) stay this high over the table top on every planned move
 # (m; at least 0.15 m in every pick on the table): a plan that would take one lower is refused.
 LINK_FLOOR = 0.10
 LINKS = ("elbow", "wrist 1", "wrist 2", "wrist 3", "flange")
-
-
-@contextlib.contextmanager
-def _drake_quiet(quiet: bool):
-    """Drake's log shows nothing below CRITICAL inside the block when ``quiet``."""
-    log = logging.getLogger("drake")
-    level = log.level
-    if quiet:
-        log.setLevel(logging.CRITICAL)
-    try:
-        yield
-    finally:
-        log.setLevel(level)
 
 
 def wrist_in_band(q, center: float = 0.0) -> np.ndarray:
@@ -170,7 +158,8 @@ class ArmMotion:
             toppra.AddJointAccelerationLimit(-amax * np.ones(6), amax * np.ones(6))
             # Drake logs an ERROR when TOPP-RA fails; on every path but the last that failure
             # is the expected way to the fallback, so it is not shown.
-            with _drake_quiet(i < len(paths) - 1):
+            quiet = i < len(paths) - 1
+            with drake_log_level(logging.CRITICAL) if quiet else contextlib.nullcontext():
                 s_traj = toppra.SolvePathParameterization()
             if s_traj is not None:
                 return PathParameterizedTrajectory(path, s_traj)

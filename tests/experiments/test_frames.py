@@ -100,3 +100,5 @@ def test_a_level_may_take_each_mode_from_its_own_sweep(tmp_path):
     by_mode = {r["mode"]: r for r in rows}
     assert set(by_mode) == {"mog", "sog"} and by_mode["mog"]["scenes"] == by_mode["sog"]["scenes"] == 2
     assert by_mode["mog"]["success_rate"] == 75.0 and by_mode["sog"]["success_rate"] == 25.0
+    att = frames.attempts({"mog": tmp_path / "a", "sog": tmp_path / "b"})
+    assert sorted(zip(att["mode"], att.table)) == [("mog", 0), ("mog", 1), ("sog", 0), ("sog", 1)]
