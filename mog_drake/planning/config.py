@@ -124,6 +124,11 @@ class LoopConfig:
     # off, a fifth of our single-object grasps are planned to lift a neighbour too. The last
     # resort still takes any grasp of the object.
     sog_alone: bool = False
+    # After a grasp that took none of its objects, the object nearest each of its open jaws
+    # (within 8 mm) may be what a plate came down on: later grasps keep their jaws its gap
+    # plus 2 mm off it, until it is taken (`picking.tally_suspects`). Without it, only the
+    # missed jaws' own footprints are kept clear, for the last three misses.
+    wary_neighbours: bool = False
 
     def check(self) -> None:
         if self.grouping not in GROUPINGS:

@@ -42,9 +42,10 @@ import time
 from dataclasses import replace
 
 import numpy as np
+import shapely
 
 from mog_drake.errors import MogError
-from mog_drake.geometry import ranked_groups
+from mog_drake.geometry import jaw_collision_free, ranked_groups
 from mog_drake.geometry.groups import adjacent_groups
 from mog_drake.geometry.polygon import polygon_area, polygon_centroid
 from mog_drake.geometry.push import PUSH_GAP
@@ -59,7 +60,7 @@ from mog_drake.planning.decision import (
     drawn_first,
     recall,
 )
-from mog_drake.planning.planner import GraspPlanner
+from mog_drake.planning.planner import GraspPlanner, jaw_obstacles
 from mog_drake.planning.pushing import consider_pushes, lone_reason
 from mog_drake.scenes import Scene, SceneObject, make_shape
 
@@ -74,6 +75,13 @@ LAST_RESORT_TOTAL = 48  # physics checks at most over all groups
 # wrong, something the check does not model) would otherwise be tried until the time limit.
 MAX_MISSES = 3
 MISS_RADIUS = 0.03  # m: a failed grasp nudges its object; a taken one leaves nothing here
+# LoopConfig.wary_neighbours: after a grasp that took none of its objects, the object nearest
+# each of its open jaws, if its outline came within SUSPECT_NEAR of that jaw, may be what the
+# plate came down on (its pose or size perceived wrong by at least that gap); later grasps keep
+# their jaws that gap plus SUSPECT_EXTRA from it, until it is taken.
+SUSPECT_NEAR = 0.008  # m: the deepest landings recorded at the paper's cell are 10 mm
+SUSPECT_EXTRA = 0.002  # m: a plate stops on 1-2 mm of an object (docs/physics.md)
+MAX_SUSPECTS = 8
 # push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
 # between them, and the pushed object may turn a little as it stops).
 ADJACENT_GAP = PUSH_GAP + 0.004  # m
@@ -146,7 +154,7 @@ def next_pick(
         res = around = None
         if failures is not None:
             around = around_group(scene, group, planner.gripper)
-            res = recall(pending, group, around, avoid)
+            res = _clear(recall(pending, group, around, avoid), scene, group, planner)
             decision.remembered += res is not None
         if res is None:
             res = planner.plan(scene, group, rng=rng, avoid=avoid, alone=alone)
@@ -227,6 +235,19 @@ def _mog_groups(scene, planner: GraspPlanner, spec: PlannerSpec, adjacent: float
     return groups
 
 
+def _clear(res, scene, group, planner: GraspPlanner):
+    """A replayed plan (`recall`) whose grasp, or partial lift, puts the open jaws on what they
+    must now keep off (`jaw_obstacles`: a grasp that took nothing since it was planned) loses
+    it; a replayed grasp lost is None: plan the group."""
+    if res is None or (blobs := jaw_obstacles(scene, group)) is None:
+        return res
+    if res.found and not jaw_collision_free(blobs, res.grasp, planner.gripper)[0]:
+        return None
+    if res.best_lift is not None and not jaw_collision_free(blobs, res.best_lift[0], planner.gripper)[0]:
+        return replace(res, best_lift=None)
+    return res
+
+
 def _excluding(groups: list, exclude) -> list:
     excluded = {int(i) for i in exclude}
     return [g for g in groups if not excluded.intersection(g)]
@@ -253,6 +274,48 @@ def tally_misses(misses: tuple, targets: tuple, scene) -> tuple[tuple, list[int]
         for i, n in sorted(counts.items())
     )
     return new, sorted(i for i, n in counts.items() if n >= MAX_MISSES)
+
+
+def tally_suspects(suspects: tuple, scene, footprints=(), targets: tuple = ()) -> tuple:
+    """Objects a missed grasp's open jaws may have come down on, across images whose object
+    ids differ (`LoopConfig.wary_neighbours`).
+
+    ``suspects``: ((shape, x, y, margin), ...) as of the last image, each found again in
+    ``scene`` as `tally_misses` finds its entries (dropped when not: taken, or moved far);
+    ``footprints``: the jaws' rectangles of a grasp executed since that took none of
+    ``targets`` (`planner.jaw_footprints`), or none. For each jaw, the non-target object whose
+    outline comes nearest it, if within SUSPECT_NEAR, becomes a suspect with margin its gap
+    plus SUSPECT_EXTRA (the larger if it was one already). Returns the new suspects, at most
+    MAX_SUSPECTS (the latest), at the objects' positions in ``scene``."""
+    margins = {i: e[3] for e, i in zip(suspects, _found_again(suspects, scene), strict=True) if i is not None}
+    if len(footprints) and len(scene):
+        hit = {i for i in _found_again(targets, scene) if i is not None}
+        outlines = scene.shapely_polygons()
+        for jaw in footprints:
+            gaps = shapely.distance(shapely.Polygon(jaw), outlines)
+            gaps[list(hit)] = np.inf
+            i = int(np.argmin(gaps))
+            if gaps[i] <= SUSPECT_NEAR:
+                margins[i] = max(margins.pop(i, 0.0), float(gaps[i]) + SUSPECT_EXTRA)  # latest last
+    kept = list(margins.items())[-MAX_SUSPECTS:]
+    return tuple(
+        (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), round(m, 4))
+        for i, m in kept
+    )
+
+
+def wary_outlines(suspects: tuple, scene) -> list[dict]:
+    """``scene.meta["wary"]`` for `planner.jaw_obstacles`: each suspect's outline in ``scene``
+    grown by its margin, with its shape and position (a group holding it is exempt)."""
+    out = []
+    for (_, _, _, m), i in zip(suspects, _found_again(suspects, scene), strict=True):
+        if i is None:
+            continue
+        o = scene.objects[i]
+        grown = shapely.Polygon(scene.polygon(i)).buffer(m, join_style="mitre")
+        vertices = np.asarray(shapely.get_coordinates(shapely.normalize(grown).exterior))[:-1][::-1]  # CCW
+        out.append({"shape": o.shape, "x": float(o.x), "y": float(o.y), "vertices": vertices.tolist()})
+    return out
 
 
 def missed(targets: tuple, scene) -> bool:
@@ -311,7 +374,9 @@ def _last_resort(
             res = around = None
             if memory is not None:
                 around = around_group(scene, first.group, planner.gripper)
-                res = recall(memory[0], first.group, around, avoid, stage)
+                res = _clear(
+                    recall(memory[0], first.group, around, avoid, stage), scene, first.group, planner
+                )
                 decision.remembered += res is not None
             if res is None:
                 deeper.config = replace(planner.config, max_physics=cap, max_physics_large=None)

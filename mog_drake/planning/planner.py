@@ -184,7 +184,7 @@ class GraspPlanner:
         polys = scene.polygons()
 
         t = time.perf_counter()
-        cands, margin, final = self._candidates(polys, group, jaw_obstacles(scene))
+        cands, margin, final = self._candidates(polys, group, jaw_obstacles(scene, group))
         times = {"candidates": time.perf_counter() - t, "filter": 0.0, "rank": 0.0, "physics": 0.0}
 
         passed = None
@@ -299,18 +299,27 @@ class GraspPlanner:
             yield i
 
 
-def jaw_obstacles(scene) -> PolygonSet | None:
-    """What the open jaws must not come down on besides the scene's objects, from
-    ``scene.meta``, as a PolygonSet for the jaws' collision check (None when nothing):
+def jaw_obstacles(scene, group=()) -> PolygonSet | None:
+    """What the open jaws of a grasp of ``group`` must not come down on besides the scene's
+    objects, from ``scene.meta``, as a PolygonSet for the jaws' collision check (None when
+    nothing):
 
     * ``unrecognised``: the outlines of the blobs perception saw but could not fit (each the
       convex hull of its points seen from above: a knocked-over or leaning prism is under a
       jaw as surely as an object);
     * ``missed_jaws``: the footprints of the jaws of recent grasps that took none of their
       objects (`jaw_footprints`): what stopped or pushed them there may still be there,
-      seen or not, and a grasp shifted by a few millimetres would meet it again."""
+      seen or not, and a grasp shifted by a few millimetres would meet it again;
+    * ``wary``: objects a missed grasp's jaws may have come down on, each outline grown by
+      its margin (`picking.wary_outlines`), except those of ``group``'s own objects."""
     outlines = [np.asarray(b["vertices"], dtype=float) for b in scene.meta.get("unrecognised", ())]
     outlines += [np.asarray(v, dtype=float) for v in scene.meta.get("missed_jaws", ())]
+    members = [scene.objects[int(i)] for i in group]
+    outlines += [
+        np.asarray(w["vertices"], dtype=float)
+        for w in scene.meta.get("wary", ())
+        if not any(o.shape == w["shape"] and math.hypot(o.x - w["x"], o.y - w["y"]) < 1e-6 for o in members)
+    ]
     outlines = [v for v in outlines if len(v) >= 3]
     if not outlines:
         return None

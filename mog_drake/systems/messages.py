@@ -74,6 +74,9 @@ class Decision(Immutable):
     # The last few grasps that took none of their objects (`picking.missed`), as of its image:
     # their jaws' footprints are kept clear (`planner.jaw_obstacles`).
     missed_grasps: tuple = ()
+    # Objects a missed grasp's jaws may have come down on ((shape, x, y, margin): see
+    # tally_suspects), as of its image; with planner.loop.wary_neighbours.
+    suspects: tuple = ()
     # The lookahead's memory for this plan: "used" (visible at its image), "dropped" (not in
     # time), or "" (none ran).
     lookahead: str = ""

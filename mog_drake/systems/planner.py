@@ -16,7 +16,7 @@ from mog_drake.config import LatencyConfig
 from mog_drake.planning.config import PlannerSpec
 from mog_drake.planning.decision import PickDecision
 from mog_drake.planning.lookahead import lookahead
-from mog_drake.planning.picking import missed, next_pick, tally_misses
+from mog_drake.planning.picking import missed, next_pick, tally_misses, tally_suspects, wary_outlines
 from mog_drake.planning.planner import jaw_footprints
 from mog_drake.systems.jobs import Worker, clock_of
 from mog_drake.systems.messages import Decision, Perceived, Slot
@@ -31,6 +31,7 @@ class _Request:
     scene: object  # the perceived scene
     misses: tuple  # failed grasps per object as of its image
     missed_grasps: tuple  # as Decision.missed_grasps
+    suspects: tuple  # as Decision.suspects
     lookahead: str  # as Decision.lookahead
 
 
@@ -136,6 +137,7 @@ class PlannerSystem(LeafSystem):
             targets=_targets(d, req.scene),
             misses=req.misses,
             missed_grasps=req.missed_grasps,
+            suspects=req.suspects,
             lookahead=used,
         )
         state.get_mutable_abstract_state(self._state).set_value(cur)
@@ -187,13 +189,21 @@ class PlannerSystem(LeafSystem):
         # The jaws of the last grasps that took none of their objects stay off where they were.
         gone = base.missed_grasps
         last = base.decision
+        footprints = ()
         if last is not None and last.status == "grasp" and missed(base.targets, p.scene):
             g = tuple(float(v) for v in last.grasp)
             gone = gone if g in gone else (gone + (g,))[-self.REMEMBER :]
-        scene = p.scene
+            footprints = jaw_footprints(g, self._planner.gripper)
+        meta = {}
         if gone:
-            jaws = [r for g in gone for r in jaw_footprints(g, self._planner.gripper)]
-            scene = dataclasses.replace(scene, meta={**scene.meta, "missed_jaws": jaws})
+            meta["missed_jaws"] = [r for g in gone for r in jaw_footprints(g, self._planner.gripper)]
+        suspects = ()
+        if self._spec.loop.wary_neighbours:
+            # ... and the objects its jaws may have come down on stay that much farther off.
+            suspects = tally_suspects(base.suspects, p.scene, footprints, base.targets)
+            if suspects:
+                meta["wary"] = wary_outlines(suspects, p.scene)
+        scene = dataclasses.replace(p.scene, meta={**p.scene.meta, **meta}) if meta else p.scene
         job = self._worker.submit(
             functools.partial(self._plan, exclude=given_up),
             scene,
@@ -204,7 +214,7 @@ class PlannerSystem(LeafSystem):
             self._spec.pushes.max_per_table - base.pushes,
             t_request=t,
             counter=p.counter,
-            info=_Request(base, len(p.scene), scene, misses, gone, used),
+            info=_Request(base, len(p.scene), scene, misses, gone, suspects, used),
         )
         state.get_mutable_abstract_state(self._job).set_value(Slot(job))
 

@@ -570,7 +570,8 @@ def test_a_failed_group_is_not_planned_again_while_its_surroundings_are_unchange
 def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_if_nothing_moved():
     """A decision grasps the cube; the lookahead plans the table without it and finds the
     hexagon's grasp. In the next image (the cube gone, ids in another order) that grasp is
-    taken with no physics check. Had the grasp pushed the hexagon 5 mm, it is planned again."""
+    taken with no physics check. Had the grasp pushed the hexagon 5 mm, it is planned again;
+    so it is if its jaws would land where a missed grasp's came down."""
     from dataclasses import replace
 
     from mog_drake.planning.config import PlannerSpec
@@ -607,6 +608,17 @@ def test_the_lookahead_plans_the_next_grasp_before_its_image_and_it_is_replayed_
     d3 = next_pick(moved, planner, spec, failures=memory)
     assert len(v.asked) == 1 and d3.remembered == 0 and d3.status == "grasp"
     assert first.objects[grasped] != o
+
+    # Nothing moved, but a grasp that took nothing since put its jaws where the remembered
+    # grasp's would go (`jaw_obstacles`): planned again, off them.
+    from mog_drake.geometry import jaw_collision_free
+    from mog_drake.planning.planner import jaw_footprints, jaw_obstacles
+
+    v.asked.clear()
+    kept_off = replace(left, meta={"missed_jaws": jaw_footprints(memory[0].result.grasp)})
+    d4 = next_pick(kept_off, planner, spec, failures=memory)
+    assert len(v.asked) == 1 and d4.remembered == 0 and d4.status == "grasp"
+    assert jaw_collision_free(jaw_obstacles(kept_off), d4.grasp)[0]
 
 
 def test_in_sog_the_object_the_lookahead_drew_is_tried_first_and_its_grasp_replayed():
@@ -760,6 +772,46 @@ def test_failed_grasps_are_tallied_per_object_across_images():
     # Moved farther than MISS_RADIUS (or taken): forgotten.
     far = make_scene([("large_hexagon", 0.05 + 1.5 * MISS_RADIUS, -0.10, 0.0)])
     assert tally_misses(misses, (), far) == ((), [])
+
+
+def test_the_object_nearest_each_jaw_of_a_missed_grasp_is_suspected_until_it_is_taken():
+    """tally_suspects: for each jaw of a grasp that took nothing, the nearest object (not a
+    target) within SUSPECT_NEAR becomes a suspect, its margin its gap plus SUSPECT_EXTRA; one
+    farther is not; a suspect follows its object between images and is dropped once gone.
+    jaw_obstacles keeps the jaws its margin off it, except in a grasp of the suspect itself."""
+    import shapely
+
+    from mog_drake.geometry import jaw_collision_free
+    from mog_drake.planning.picking import SUSPECT_EXTRA, SUSPECT_NEAR, tally_suspects, wary_outlines
+    from mog_drake.planning.planner import jaw_footprints, jaw_obstacles
+
+    grasp = (0.0, 0.0, 0.0)  # closing along x: the jaws stand at x = +-(w_g/2 .. w_g/2 + plate)
+    right, left = (shapely.Polygon(f) for f in jaw_footprints(grasp)[::-1])
+    assert right.centroid.x > 0 > left.centroid.x
+    cube = shapely.Polygon(make_scene([("small_yellow_cube", 0.0, 0.0, 0.0)]).polygon(0))
+    half = cube.bounds[2]
+    near_x = right.bounds[2] + 0.003 + half  # 3 mm beyond the right jaw's outer face
+    far_x = left.bounds[0] - (SUSPECT_NEAR + 0.002) - half  # 10 mm beyond the left jaw
+    objects = [("thick_bar", 0.0, 0.0, np.pi / 2), ("small_yellow_cube", near_x, 0.0, 0.0)]
+    objects.append(("small_yellow_cube", far_x, 0.0, 0.0))
+    scene = make_scene(objects)
+    target = (("thick_bar", 0.0, 0.0),)
+    suspects = tally_suspects((), scene, jaw_footprints(grasp), target)
+    assert [s[:3] for s in suspects] == [("small_yellow_cube", near_x, 0.0)]
+    assert suspects[0][3] == pytest.approx(0.003 + SUSPECT_EXTRA, abs=1e-4)
+    # No miss since: it stays, following its object (listed first now, nudged 2 mm).
+    moved = make_scene([("small_yellow_cube", near_x + 0.002, 0.0, 0.0), *objects[:1]])
+    assert tally_suspects(suspects, moved) == (("small_yellow_cube", near_x + 0.002, 0.0, suspects[0][3]),)
+    # Taken: forgotten.
+    assert tally_suspects(suspects, make_scene(objects[:1])) == ()
+    # The jaws stay its margin off it, unless the grasp is of the suspect itself.
+    scene.meta["wary"] = wary_outlines(suspects, scene)
+    grown = shapely.Polygon(scene.meta["wary"][0]["vertices"])
+    assert shapely.Polygon(scene.polygon(1)).buffer(suspects[0][3] - 1e-6).within(grown)
+    blobs = jaw_obstacles(scene, (0,))
+    assert not jaw_collision_free(blobs, (-0.0015, 0.0, 0.0))[0]  # its right jaw 4.5 mm from the cube
+    assert jaw_collision_free(blobs, (-0.0025, 0.0, 0.0))[0]  # 5.5 mm
+    assert jaw_obstacles(scene, (1,)) is None
 
 
 def test_objects_given_up_on_are_not_planned_and_alone_they_end_the_run():
