@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mog_drake.experiments.machine import speed_gap
 from mog_drake.experiments.stats import mean_ci
 from mog_drake.experiments.sweep import read_params
 
@@ -106,7 +107,8 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
     """Sweep B against sweep A on the tables both ran (same key and table seed): per mode and
     metric, both means and the mean paired difference B - A with its 95 % t interval (the
     tables are the pairs, so table-to-table spread cancels). Also each side's transit drops
-    over those tables. Raises ``MogError`` when the two sweeps share no table."""
+    over those tables, and ``machines``: why their runs' timings do not pair, or ""
+    (`machine.speed_gap`). Raises ``MogError`` when the two sweeps share no table."""
     from mog_drake.errors import MogError
 
     a = {r["key"]: r for r in results_a}
@@ -141,7 +143,8 @@ def compare(results_a: list[dict], results_b: list[dict]) -> dict:
                 }
             )
         drops[m] = {"a": transit_drops([a[k] for k in keys]), "b": transit_drops([b[k] for k in keys])}
-    return {"rows": rows, "transit_drops": drops, "tables": len(common)}
+    machines = speed_gap([a[k] for k in common], [b[k] for k in common])
+    return {"rows": rows, "transit_drops": drops, "tables": len(common), "machines": machines}
 
 
 def compare_modes(results: list[dict], a_mode: str, b_mode: str) -> dict:

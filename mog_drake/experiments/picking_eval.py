@@ -8,6 +8,7 @@ import statistics
 from collections import Counter
 from pathlib import Path
 
+from mog_drake.experiments.machine import machine
 from mog_drake.experiments.picking_compare import (
     check_comparable,
     compare,
@@ -19,7 +20,7 @@ from mog_drake.experiments.picking_compare import (
     wait_pct,
 )
 from mog_drake.experiments.stats import mean_ci
-from mog_drake.experiments.sweep import check_params, run_sweep
+from mog_drake.experiments.sweep import check_params, read_params, run_sweep
 
 PAPER_TABLE1 = {
     "sog": {"success_rate": 73.31, "picked_pct": 97.77, "pph": 212.59},
@@ -68,7 +69,7 @@ def picking_worker(task: dict) -> dict:
     from mog_drake.systems.pick import run_pick
 
     run = run_pick(task_scenario(task))
-    task = dict(task)
+    task = {**task, "machine": machine()}  # its speed sets the waits with latency.mode cpu
     if task.get("scenario"):  # recorded once, in sweep.json
         task["scenario"] = hashlib.sha256(task["scenario"].encode()).hexdigest()[:16]
     return {
@@ -80,6 +81,18 @@ def picking_worker(task: dict) -> dict:
         # Where each object outside the bin ended: {id: [where, [x, y, z], shape]}.
         "left": {str(i): [w, p, run.shapes[i]] for i, (w, p) in run.left.items()},
     }
+
+
+def _latency_mode(out_dir) -> str:
+    """The latency mode of the sweep in ``out_dir`` (its sweep.json's scenario), "" if unknown."""
+    import yaml
+
+    params = read_params(Path(out_dir)) or {}
+    try:
+        doc = yaml.safe_load(params.get("scenario") or "") or {}
+        return str((doc.get("latency") or {}).get("mode", "measured"))
+    except (yaml.YAMLError, AttributeError):
+        return ""
 
 
 def valid_run(rec: dict) -> bool:
@@ -392,6 +405,8 @@ def report(summary: dict, results: list[dict], out, compare_dir: str | None = No
             f"\n\npaired with {compare_dir} (A) on {paired['tables']} common runs; B = {out}\n"
             + compare_text(paired)
         )
+        if paired["machines"] and "fixed" not in (_latency_mode(compare_dir), _latency_mode(out)):
+            text += f"\nwarning: {paired['machines']}"
     if reading_only():  # --summary-only reads, never writes
         return text + f"\n\nresults: {out / 'results.jsonl'} (summary only: nothing written)"
     png = figures.picking_figure(summary, out / "picking.png", PAPER_TABLE1)

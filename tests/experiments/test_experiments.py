@@ -284,6 +284,29 @@ def test_two_picking_sweeps_are_compared_table_by_table():
         picking_compare.compare(a[2:3], b)
 
 
+def test_runs_record_their_machine_and_sweeps_from_machines_of_other_speeds_are_flagged():
+    """Each run records its machine with the CPU time of a reference physics check; with
+    latency.mode cpu the waits scale with it, so a pairing of runs whose reference checks
+    differ by more than SPEED_TOLERANCE, or of runs that recorded none, says so; runs on one
+    machine pair silently."""
+    from mog_drake.experiments.machine import SPEED_TOLERANCE, machine, speed_gap
+
+    here = machine()
+    assert here["cores"] >= 1 and here["cpu"] and 0 < here["check_cpu_s"] < 30
+
+    def runs(*speeds):
+        return [
+            {**_picking_record(k, "mog", 0.9, 500.0), **({"machine": {"check_cpu_s": s}} if s else {})}
+            for k, s in enumerate(speeds)
+        ]
+
+    assert speed_gap(runs(0.30, 0.32), runs(0.31, 0.29)) == ""
+    slower = speed_gap(runs(0.30, 0.32), runs(0.30 * SPEED_TOLERANCE * 1.1, 1.0))
+    assert "machines differ" in slower and "0.30-0.32 s of CPU in A and 0.41-1.00 s in B" in slower
+    assert speed_gap(runs(0.30, None), runs(0.30, 0.30)).startswith("A: some runs do not record")
+    assert picking_compare.compare(runs(0.3, 0.3), runs(0.9, 0.9))["machines"]
+
+
 def test_compare_refuses_a_sweep_of_other_tables_before_anything_runs(tmp_path, capsys):
     """A 3-object sweep compared with a 2-object one: one line naming the difference, exit 2,
     and the new sweep's folder not even made. Sweeps of the same tables with other settings

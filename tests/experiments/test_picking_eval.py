@@ -92,6 +92,7 @@ def test_picking_evaluation_runs_a_base_scenario_and_refuses_to_mix_two(tmp_path
     record = picking_eval.picking_worker(task)
     assert seen[0].planner.loop.group_radius == 0.045 and record["summary"]["objects"] == 5
     assert record["scenario"] != text and len(record["scenario"]) == 16  # the text lives in sweep.json
+    assert record["machine"]["check_cpu_s"] > 0  # what its waits scale with (latency.mode cpu)
 
     picking_eval.run(1, ["sog"], seed=4, out_dir=tmp_path, objects=5, progress=False, scenario=text)
     assert json.loads((tmp_path / "sweep.json").read_text())["scenario"] == text
