@@ -34,6 +34,11 @@ class LatencyConfig:
     mode: str = "measured"
     perception_s: float = 0.3
     planning_s: float = 2.0
+    # s, with mode cpu: the CPU time of the reference physics check (`sim.reference`; each
+    # picking run records its machine's) on the computer to model. Each job's CPU time is
+    # scaled by it over this machine's, so that runs on machines of other speeds pair. 0: this
+    # machine's CPU time as it is.
+    cpu_reference_s: float = 0.0
 
     def of(self, stage: str) -> float | None:
         """The fixed latency of ``stage`` ("perception" or "planning"), None when measured."""
@@ -46,6 +51,7 @@ class LatencyConfig:
             raise MogError(f"latency.mode must be one of {', '.join(LATENCY_MODES)}, got {self.mode!r}")
         for key in ("perception_s", "planning_s"):
             in_range(getattr(self, key), f"latency.{key}", 0, 600, lo_open=False)
+        in_range(self.cpu_reference_s, "latency.cpu_reference_s", 0, 60, lo_open=False)
 
 
 @dataclass

@@ -5,45 +5,22 @@ run at one speed (`speed_gap`)."""
 
 from __future__ import annotations
 
-import functools
 import os
 import platform
-import time
 
 #: Two machines whose reference checks differ by more than this factor do not pair.
 SPEED_TOLERANCE = 1.25
 
 
-@functools.cache
 def machine() -> dict:
     """This process's machine: its CPU model, the cores it may use and ``check_cpu_s``, the
-    CPU time (s) of one reference physics check (two objects in a row, closed on and lifted
-    by the default check; the least of three, after one to warm up): what planning spends
-    its time on. About 2 s of CPU, once per process."""
-    import math
+    CPU time of the reference physics check (`sim.reference.reference_check_cpu_s`)."""
+    from mog_drake.sim.reference import reference_check_cpu_s
 
-    from mog_drake.scenario import Scenario
-    from mog_drake.scenes import Scene, SceneObject, default_library
-    from mog_drake.sim.verifier import DrakeVerifier
-
-    sc = Scenario()
-    check = DrakeVerifier(sc.verifier, physics=sc.gripper)
-    row = Scene(
-        [
-            SceneObject("thick_bar", -0.012, 0.0, math.pi / 2),
-            SceneObject("small_yellow_cube", 0.010, 0.002, 0.0),
-        ],
-        default_library(),
-    )
-    times = []
-    for _ in range(4):
-        t = time.process_time()
-        check.check(row, (0, 1), [0.0, 0.0, 0.0])
-        times.append(time.process_time() - t)
     return {
         "cpu": _cpu_model(),
         "cores": len(os.sched_getaffinity(0)),
-        "check_cpu_s": round(min(times[1:]), 4),
+        "check_cpu_s": reference_check_cpu_s(),
     }
 
 

@@ -65,9 +65,22 @@ CPU = JobClock("cpu", False, _this_threads_cpu)
 
 
 def clock_of(latency: LatencyConfig) -> JobClock:
-    """What a measured latency is counted on: the job thread's CPU time (``cpu``), else the
-    wall clock."""
-    return CPU if latency.mode == "cpu" else WALL
+    """What a measured latency is counted on: the job thread's CPU time (``cpu``; with
+    ``cpu_reference_s``, scaled by it over this machine's reference check), else the wall
+    clock."""
+    if latency.mode != "cpu":
+        return WALL
+    if not latency.cpu_reference_s:
+        return CPU
+    from mog_drake.sim.reference import reference_check_cpu_s
+
+    scale = latency.cpu_reference_s / reference_check_cpu_s()
+
+    def scaled():
+        read = _this_threads_cpu()
+        return lambda: scale * read()
+
+    return JobClock(f"cpu x{scale:.2f}", False, scaled)
 
 
 @dataclass(frozen=True)

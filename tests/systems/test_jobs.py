@@ -5,6 +5,7 @@ import time
 import pytest
 
 from mog_drake.config import LatencyConfig
+from mog_drake.errors import MogError
 from mog_drake.systems.jobs import CPU, WALL, Worker, clock_of
 
 
@@ -71,3 +72,31 @@ def test_a_lookahead_queued_behind_another_on_the_cpu_clock_carries_that_wait_in
         assert w.submit(_spin_then, 0.01, "second", t_request=0.1, counter=2).waited() == 0.0
     finally:
         w.shutdown()
+
+
+def test_the_cpu_clock_models_a_slower_computer_by_its_reference_check(monkeypatch):
+    """With ``cpu_reference_s`` three times this machine's reference check, a job that computes
+    0.1 s of CPU takes 0.3 s on the job's clock: not visible 0.25 s after its request, visible
+    at 0.35 s. Its CPU time stays what it was."""
+    from mog_drake.sim import reference
+
+    monkeypatch.setattr(reference, "reference_check_cpu_s", lambda: 0.2)
+    slow = clock_of(LatencyConfig("cpu", cpu_reference_s=0.6))
+    assert slow.name == "cpu x3.00" and not slow.from_request
+    assert clock_of(LatencyConfig("fixed", cpu_reference_s=0.6)) is WALL
+    worker = Worker("test", slow)
+    try:
+        spinner = worker.submit(_spin, 0.1, t_request=0.0, counter=1)
+        assert not spinner.visible(0.25, None, block=True)
+        assert spinner.visible(0.35, None, block=True)
+        assert 0.1 <= spinner.cpu_time() < 0.115 and 0.3 <= spinner.clock_time() < 0.345
+    finally:
+        worker.shutdown()
+    with pytest.raises(MogError, match="latency.cpu_reference_s"):
+        LatencyConfig("cpu", cpu_reference_s=-1.0).check()
+
+
+def test_the_reference_check_is_timed_on_this_machine():
+    from mog_drake.sim.reference import reference_check_cpu_s
+
+    assert 0.005 < reference_check_cpu_s() < 30
