@@ -36,8 +36,9 @@ class LatencyConfig:
     planning_s: float = 2.0
     # s, with mode cpu: the CPU time of the reference physics check (`sim.reference`; each
     # picking run records its machine's) on the computer to model. Each job's CPU time is
-    # scaled by it over this machine's, so that runs on machines of other speeds pair. 0: this
-    # machine's CPU time as it is.
+    # scaled by it over this machine's, so that runs on machines of other speeds pair;
+    # perception's by the same factor, though its numpy may scale otherwise than Drake's
+    # physics. 0: this machine's CPU time as it is.
     cpu_reference_s: float = 0.0
 
     def of(self, stage: str) -> float | None:
