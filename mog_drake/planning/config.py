@@ -127,8 +127,10 @@ class LoopConfig:
     # After a grasp that took none of its objects, the object nearest each of its open jaws
     # (within 8 mm) may be what a plate came down on: later grasps keep their jaws its gap
     # plus 2 mm off it, until it is taken (`picking.tally_suspects`). Without it, only the
-    # missed jaws' own footprints are kept clear, for the last three misses.
-    wary_neighbours: bool = False
+    # missed jaws' own footprints are kept clear, for the last three misses. On the paper's
+    # cell it cut repeated stops (21 -> 6 in a stiff world) at no measured cost
+    # (docs/experiments.md, "One machine").
+    wary_neighbours: bool = True
 
     def check(self) -> None:
         if self.grouping not in GROUPINGS:
