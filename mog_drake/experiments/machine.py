@@ -47,14 +47,14 @@ def speed_gap(runs_a: list[dict], runs_b: list[dict]) -> str:
     unknown = [side for side, runs, s in (("A", runs_a, a), ("B", runs_b, b)) if len(s) < len(runs)]
     if unknown:
         return (
-            f"{' and '.join(unknown)}: some runs do not record their machine; with latency.mode cpu "
+            f"{' and '.join(unknown)}: some runs do not record their machine; with measured or CPU latency "
             "the waits, cycle times and PPH pair only between runs on one machine"
         )
     lo, hi = min(a + b), max(a + b)
     if hi > SPEED_TOLERANCE * lo:
         return (
             f"the runs' machines differ: a reference physics check took {min(a):.2f}-{max(a):.2f} s of CPU "
-            f"in A and {min(b):.2f}-{max(b):.2f} s in B; with latency.mode cpu the waits, cycle times "
+            f"in A and {min(b):.2f}-{max(b):.2f} s in B; with measured or CPU latency the waits, cycle times "
             "and PPH differ by that alone"
         )
     return ""

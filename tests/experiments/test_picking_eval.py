@@ -171,3 +171,29 @@ def test_the_summary_splits_the_last_resort_s_grasps_from_the_others():
     (row,) = picking_eval.summarize([run], ["mog"])["rows"]
     assert "last_resort" not in row
     assert "last resort" not in picking_eval.losses_text({"rows": [row]})
+
+
+def test_a_pairing_of_sweeps_from_machines_of_other_speeds_says_so(tmp_path, monkeypatch):
+    """Two sweeps of the same tables, one of them re-recorded as run on a machine three times
+    slower: the paired report ends its table with a warning; with fixed latency on both sides,
+    where speed does not enter, it does not."""
+    from mog_drake.experiments import picking_eval
+    from mog_drake.experiments.sweep import summary_only
+    from mog_drake.systems import pick
+    from mog_drake.systems.pick_run import PickRun
+
+    monkeypatch.setattr(pick, "run_pick", lambda sc: PickRun(objects=5, shapes=["cube"] * 5))
+    for latency in ("cpu", "fixed"):
+        a, b = tmp_path / f"a_{latency}", tmp_path / f"b_{latency}"
+        text = f"latency:\n  mode: {latency}\n"
+        for out in (a, b):
+            picking_eval.run(1, ["mog"], seed=4, out_dir=out, objects=5, progress=False, scenario=text)
+        rec = json.loads((a / "results.jsonl").read_text())
+        rec["machine"]["check_cpu_s"] *= 3
+        (a / "results.jsonl").write_text(json.dumps(rec) + "\n")
+        summary, results = picking_eval.run(
+            1, ["mog"], seed=4, out_dir=b, objects=5, progress=False, scenario=text
+        )
+        with summary_only():
+            text_out = picking_eval.report(summary, results, b, compare_dir=str(a))
+        assert ("warning: the runs' machines differ" in text_out) == (latency == "cpu")
