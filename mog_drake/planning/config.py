@@ -128,7 +128,7 @@ class LoopConfig:
     # (within 8 mm) may be what a plate came down on: later grasps keep their jaws its gap
     # plus 2 mm off it, until it is taken (`picking.tally_suspects`). Without it, only the
     # missed jaws' own footprints are kept clear, for the last three misses. On the paper's
-    # cell it cut repeated stops (21 -> 6 in a stiff world) at no measured cost
+    # cell it cut repeated stops (22 -> 8 on six stiff tables) at no measured cost
     # (docs/experiments.md, "One machine").
     wary_neighbours: bool = True
 
