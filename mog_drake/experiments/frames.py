@@ -74,12 +74,13 @@ def outcome(a: dict) -> str:
 
 
 def attempts(folder):
-    """One row per grasp attempt of a picking sweep (a folder, or {mode: folder}): when (simulated s), the group's size and
-    shapes, what it meant to take, what it took, its planning time, its outcome, and how many
-    objects its open jaws came down on and how far onto the deepest (mm; ground truth; None in
-    sweeps from before it was recorded), and how many objects lying in view its scene had
-    nothing for (``unseen``; 0 also in sweeps from before v54, which did not record it), and
-    whether its decision was a last resort (``last_resort``: no grasp within the planner's cap)."""
+    """One row per grasp attempt of a picking sweep (a folder, or {mode: folder}): when
+    (simulated s), the group's size and shapes, what it meant to take, what it took, its
+    planning time, its outcome, and how many objects its open jaws came down on and how far
+    onto the deepest (mm; ground truth; None in sweeps from before it was recorded), and how
+    many objects lying in view its scene had nothing for (``unseen``; 0 also in sweeps from
+    before v54, which did not record it), and whether its decision was a last resort
+    (``last_resort``: no grasp within the planner's cap)."""
     pd = _pd()
     rows = []
     for r in _records(folder):

@@ -84,13 +84,16 @@ def picking_worker(task: dict) -> dict:
 
 
 def _latency_mode(out_dir) -> str:
-    """The latency mode of the sweep in ``out_dir`` (its sweep.json's scenario), "" if unknown."""
+    """The latency mode of the sweep in ``out_dir`` (its sweep.json's scenario, read alone: a
+    sweep made with settings since removed still names it), "" if unknown."""
     import yaml
+
+    from mog_drake.config import LatencyConfig
 
     params = read_params(Path(out_dir)) or {}
     try:
         doc = yaml.safe_load(params.get("scenario") or "") or {}
-        return str((doc.get("latency") or {}).get("mode", "measured"))
+        return str((doc.get("latency") or {}).get("mode", LatencyConfig.mode))
     except (yaml.YAMLError, AttributeError):
         return ""
 
