@@ -269,7 +269,8 @@ class ControllerSystem(LeafSystem):
                 **({"lone": dec.lone} if dec.lone else {}),
                 # Found by the last resort: a robust planner's screen and samples relaxed.
                 **({"last_resort": True} if dec.last_resort else {}),
-                **({"relaxed": True} if dec.relaxed else {}),
+                # ... with its screen at this many worlds clear.
+                **({"relaxed": dec.relaxed} if dec.relaxed else {}),
             }
         )
 
