@@ -218,11 +218,6 @@ class RobustConfig:
     # a grasp whose open jaws this share of the screen's worlds keeps clear (the nominal check
     # after the screen), before one the nominal check alone passes.
     relaxed_share: float = 0.0
-    # The relaxed screen in this many passes, the highest share first: their shares evenly
-    # spaced from one step below the whole screen down to relaxed_share (3 at 0.75 of 32
-    # worlds: 30, 27, then 24 clear), so the last resort takes the grasp the most worlds keep
-    # clear that its budget finds, not the first at the lowest share.
-    relaxed_steps: int = 1
 
     def check(self) -> None:
         if not 0 <= self.samples <= 16 or not 0 <= self.required <= self.samples:
@@ -239,8 +234,6 @@ class RobustConfig:
             raise MogError(f"planner.robust.seed must be a whole number >= 0, got {self.seed}")
         if not 0 <= self.relaxed_share < 1:
             raise MogError(f"planner.robust.relaxed_share must be in [0, 1), got {self.relaxed_share}")
-        if not 1 <= self.relaxed_steps <= 8:
-            raise MogError(f"planner.robust.relaxed_steps must be in [1, 8], got {self.relaxed_steps}")
 
 
 @dataclass

@@ -27,8 +27,8 @@ class FailedGroup:
     found: the lookahead's, see `lookahead`) the grasp it found. ``around`` holds (id, shape,
     vertices) of every object within reach of the group then: the check's verdict depends on
     nothing else, so while they are all where they were it stands. ``stage``: the pass that
-    planned it, "" for the decision's own, or a pass of the last resort ("relaxed:<n>" with
-    n screen worlds clear, "nominal": `mog_drake.planning.picking._last_resort`), whose failures are replayed by
+    planned it, "" for the decision's own, or a pass of the last resort ("relaxed",
+    "nominal": `mog_drake.planning.picking._last_resort`), whose failures are replayed by
     that pass only."""
 
     group: tuple[int, ...]
@@ -178,8 +178,7 @@ class PickDecision:
     # expected then index the blobs, not the scene's objects).
     unrecognised: bool = False
     last_resort: bool = False  # found by the last resort (see next_pick)
-    # by its relaxed screen (planner.robust.relaxed_share): the worlds it needed clear; 0: not
-    relaxed: int = 0
+    relaxed: bool = False  # by its relaxed screen (planner.robust.relaxed_share)
     groups_tried: int = 0
     partial: bool = False  # the grasp lifted part of a larger group it was planned for
     expected: tuple[int, ...] = ()  # objects the physics check lifted with this grasp

@@ -167,7 +167,7 @@ def next_pick(
             decision.status, decision.grasp, decision.group = "grasp", res.grasp, res.group
             decision.expected = tuple(res.result.lifted) if res.result is not None else res.group
             # A grasp the lookahead's last resort found, replayed from its memory.
-            decision.last_resort, decision.relaxed = bool(res.found_by), relaxed_clear(res.found_by)
+            decision.last_resort, decision.relaxed = bool(res.found_by), res.found_by == "relaxed"
             break
         if res.best_lift is not None and (best is None or len(res.best_lift[1]) > len(best[1])):
             best = res.best_lift
@@ -350,9 +350,8 @@ def _last_resort(
     skipping the candidates already simulated (a remembered plan simulated none now); takes
     the first grasp found, or with ``partial_lifts`` the first partial lift. A robust check
     (`planning.robust`) is relaxed to its nominal one here; with ``relaxed_share``, first to
-    its screen at that share, or with ``relaxed_steps`` at shares stepping down to it
-    (`RobustVerifier.relaxed`, each pass its own budget). Each pass screens again what the
-    screens before it refused, and simulates nothing a pass before it simulated.
+    its screen at that share (`RobustVerifier.relaxed`, each pass its own budget; the
+    candidates its full screen refused are screened again).
 
     ``memory`` (pending, kept): with the failure memory on, a group a pass of an earlier
     decision (or the lookahead) planned with the whole of LAST_RESORT_CHECKS and found no
@@ -360,16 +359,15 @@ def _last_resort(
     did, and each pass's failures at that cap go to ``kept`` (`FailedGroup.stage`)."""
     tried = list(decision.plans)
     relaxed = getattr(planner.verifier, "relaxed", None)
-    passes = [(v, f"relaxed:{v.clear_needed}") for v in (relaxed() if relaxed is not None else [])]
-    passes.append((getattr(planner.verifier, "nominal", planner.verifier), "nominal"))
-    # Per group, the candidates a pass simulated (its screen let them through): the nominal
-    # check refused them, and no later pass simulates them again.
-    simulated = [[i for i in first.tested_indices if i not in first.not_robust] for first in tried]
-    for verifier, stage in passes:
+    first_pass = relaxed() if relaxed is not None else None
+    passes = [(first_pass, True)] if first_pass is not None else []
+    passes.append((getattr(planner.verifier, "nominal", planner.verifier), False))
+    for verifier, is_relaxed in passes:
+        stage = "relaxed" if is_relaxed else "nominal"
         deeper = copy.copy(planner)
         deeper.verifier = verifier
         spent = 0
-        for k, first in enumerate(tried):
+        for first in tried:
             if spent >= LAST_RESORT_TOTAL:
                 break
             cap = min(LAST_RESORT_CHECKS, LAST_RESORT_TOTAL - spent)
@@ -382,8 +380,11 @@ def _last_resort(
                 decision.remembered += res is not None
             if res is None:
                 deeper.config = replace(planner.config, max_physics=cap, max_physics_large=None)
-                res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=simulated[k])
-                simulated[k] += [i for i in res.tested_indices if i not in res.not_robust]
+                # The nominal pass simulates again what the robust check refused for want of
+                # robustness alone (its screen simulated nothing; a grasp that failed only
+                # in a perturbed world lifts at the perceived poses), nothing else twice.
+                skip = () if is_relaxed else [i for i in first.tested_indices if i not in first.not_robust]
+                res = deeper.plan(scene, first.group, rng=rng, avoid=avoid, skip=skip)
                 if res.found:
                     res = replace(res, found_by=stage)
                 elif memory is not None and cap == LAST_RESORT_CHECKS:
@@ -406,14 +407,8 @@ def _last_resort(
                 decision.partial, decision.expected = True, tuple(res.best_lift[1])
             else:
                 continue
-            decision.last_resort, decision.relaxed = True, relaxed_clear(stage)
+            decision.last_resort, decision.relaxed = True, is_relaxed
             return
-
-
-def relaxed_clear(stage: str) -> int:
-    """The screen worlds a last resort's pass ``stage`` ("relaxed:<n>") needed clear; 0 for
-    any other pass."""
-    return int(stage.split(":")[1]) if stage.startswith("relaxed:") else 0
 
 
 def unrecognised_scene(scene) -> Scene:

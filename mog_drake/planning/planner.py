@@ -92,9 +92,9 @@ class PlanResult:
     # The tested candidate that lifted the most objects without an error, even if not the
     # whole group: (grasp, lifted ids). A verified grasp of those objects.
     best_lift: tuple[np.ndarray, list[int]] | None = None
-    # A grasp the last resort found (`picking._last_resort`): "relaxed:<n>" (its relaxed
-    # screen, n worlds clear) or "nominal" (the nominal check alone); "" for the planner's own
-    # check. Kept in a remembered plan, so a replayed grasp is still known for what it is.
+    # A grasp the last resort found (`picking._last_resort`): "relaxed" (its relaxed screen) or
+    # "nominal" (the nominal check alone); "" for the planner's own check. Kept in a
+    # remembered plan, so a replayed grasp is still known for what it is.
     found_by: str = ""
     # The tested candidates a robust check refused for want of robustness alone
     # (`GraspResult.not_robust`), which the last resort's nominal pass checks again.

@@ -27,8 +27,7 @@ to physics, took larger groups that failed more (docs/experiments.md, v33).
 Where no robust grasp is left, the picking loop's last resort (`next_pick`) plans with the
 nominal check alone: a grasp that lifts at the perceived poses beats leaving the table to a
 person. With ``relaxed_share`` it first plans with `RobustVerifier.relaxed`: the screen at that
-share of its worlds (with ``relaxed_steps``, at shares stepping down to it), then the nominal
-check.
+share of its worlds, then the nominal check.
 """
 
 from __future__ import annotations
@@ -83,24 +82,18 @@ class RobustVerifier:
     def __getattr__(self, name):  # push(), meshcat, last_build_time ...: the nominal check's
         return getattr(self.base, name)
 
-    def relaxed(self) -> list[RobustVerifier]:
-        """The last resort's first checks (``relaxed_share``, ``relaxed_steps``): the nominal
-        check after a screen that fewer of the worlds need pass, one verifier per pass, the
-        most worlds first; none without a share."""
+    def relaxed(self) -> RobustVerifier | None:
+        """The last resort's first check (``relaxed_share``): the nominal check after a screen
+        that ``relaxed_share`` of the worlds pass; None without it."""
         cfg = self.config
         if not cfg.relaxed_share or not cfg.screen:
-            return []
-        steps = cfg.relaxed_steps
-        # (less a hair, so that a share times the screen that is whole in decimals stays whole)
-        needed = [
-            math.ceil((1 - (1 - cfg.relaxed_share) * k / steps) * cfg.screen - 1e-9)
-            for k in range(1, steps + 1)
-        ]
-        return [
-            RobustVerifier(self.base, [], replace(cfg, samples=0, required=0), clear_needed=n)
-            for n in sorted(set(needed), reverse=True)
-            if n < cfg.screen
-        ]
+            return None
+        return RobustVerifier(
+            self.base,
+            [],
+            replace(cfg, samples=0, required=0),
+            clear_needed=math.ceil(cfg.relaxed_share * cfg.screen),
+        )
 
     @property
     def nominal(self):

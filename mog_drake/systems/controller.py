@@ -269,8 +269,7 @@ class ControllerSystem(LeafSystem):
                 **({"lone": dec.lone} if dec.lone else {}),
                 # Found by the last resort: a robust planner's screen and samples relaxed.
                 **({"last_resort": True} if dec.last_resort else {}),
-                # ... with its screen at this many worlds clear.
-                **({"relaxed": dec.relaxed} if dec.relaxed else {}),
+                **({"relaxed": True} if dec.relaxed else {}),
             }
         )
 
