@@ -127,9 +127,9 @@ class LoopConfig:
     # After a grasp that took none of its objects, the object nearest each of its open jaws
     # (within 8 mm) may be what a plate came down on: later grasps keep their jaws its gap
     # plus 2 mm off it, until it is taken (`picking.tally_suspects`). Without it, only the
-    # missed jaws' own footprints are kept clear, for the last three misses. On the paper's
-    # cell it cut repeated stops (22 -> 8 on six stiff tables) at no measured cost
-    # (docs/experiments.md, "One machine").
+    # missed jaws' own footprints are kept clear, for the last three misses. On six tables of
+    # the paper's cell in a stiffer world it cut repeated stops 22 -> 8 (mog) and, with every
+    # suspect kept until taken, 18 -> 12 (sog), at no measured cost (docs/experiments.md).
     wary_neighbours: bool = True
 
     def check(self) -> None:

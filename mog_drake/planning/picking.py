@@ -81,7 +81,6 @@ MISS_RADIUS = 0.03  # m: a failed grasp nudges its object; a taken one leaves no
 # their jaws that gap plus SUSPECT_EXTRA from it, until it is taken.
 SUSPECT_NEAR = 0.008  # m: the deepest landings recorded at the paper's cell are 10 mm
 SUSPECT_EXTRA = 0.002  # m: a plate stops on 1-2 mm of an object (docs/physics.md)
-MAX_SUSPECTS = 8
 # push-mog: objects whose outlines come this close form a group too (a push leaves PUSH_GAP
 # between them, and the pushed object may turn a little as it stops).
 ADJACENT_GAP = PUSH_GAP + 0.004  # m
@@ -285,8 +284,8 @@ def tally_suspects(suspects: tuple, scene, footprints=(), targets: tuple = ()) -
     ``footprints``: the jaws' rectangles of a grasp executed since that took none of
     ``targets`` (`planner.jaw_footprints`), or none. For each jaw, the non-target object whose
     outline comes nearest it, if within SUSPECT_NEAR, becomes a suspect with margin its gap
-    plus SUSPECT_EXTRA (the larger if it was one already). Returns the new suspects, at most
-    MAX_SUSPECTS (the latest), at the objects' positions in ``scene``."""
+    plus SUSPECT_EXTRA (the larger if it was one already). Returns the new suspects, every one
+    not yet taken, at the objects' positions in ``scene``."""
     margins = {i: e[3] for e, i in zip(suspects, _found_again(suspects, scene), strict=True) if i is not None}
     if len(footprints) and len(scene):
         hit = {i for i in _found_again(targets, scene) if i is not None}
@@ -296,11 +295,10 @@ def tally_suspects(suspects: tuple, scene, footprints=(), targets: tuple = ()) -
             gaps[list(hit)] = np.inf
             i = int(np.argmin(gaps))
             if gaps[i] <= SUSPECT_NEAR:
-                margins[i] = max(margins.pop(i, 0.0), float(gaps[i]) + SUSPECT_EXTRA)  # latest last
-    kept = list(margins.items())[-MAX_SUSPECTS:]
+                margins[i] = max(margins.pop(i, 0.0), float(gaps[i]) + SUSPECT_EXTRA)
     return tuple(
         (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), round(m, 4))
-        for i, m in kept
+        for i, m in margins.items()
     )
 
 

@@ -777,7 +777,8 @@ def test_failed_grasps_are_tallied_per_object_across_images():
 def test_the_object_nearest_each_jaw_of_a_missed_grasp_is_suspected_until_it_is_taken():
     """tally_suspects: for each jaw of a grasp that took nothing, the nearest object (not a
     target) within SUSPECT_NEAR becomes a suspect, its margin its gap plus SUSPECT_EXTRA; one
-    farther is not; a suspect follows its object between images and is dropped once gone.
+    farther is not; a suspect follows its object between images and is dropped once gone, and
+    only then.
     jaw_obstacles keeps the jaws its margin off it, except in a grasp of the suspect itself."""
     import shapely
 
@@ -804,6 +805,10 @@ def test_the_object_nearest_each_jaw_of_a_missed_grasp_is_suspected_until_it_is_
     assert tally_suspects(suspects, moved) == (("small_yellow_cube", near_x + 0.002, 0.0, suspects[0][3]),)
     # Taken: forgotten.
     assert tally_suspects(suspects, make_scene(objects[:1])) == ()
+    # However many misses came since: ten suspects from earlier ones, and the new one.
+    earlier = tuple(("small_yellow_cube", 0.1 * k, 0.2, 0.004) for k in range(10))
+    crowd = make_scene(objects + [s[:3] + (0.0,) for s in earlier])
+    assert tally_suspects(earlier, crowd, jaw_footprints(grasp), target) == earlier + suspects
     # The jaws stay its margin off it, unless the grasp is of the suspect itself.
     scene.meta["wary"] = wary_outlines(suspects, scene)
     grown = shapely.Polygon(scene.meta["wary"][0]["vertices"])
