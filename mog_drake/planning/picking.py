@@ -284,8 +284,8 @@ def tally_suspects(suspects: tuple, scene, footprints=(), targets: tuple = ()) -
     ``footprints``: the jaws' rectangles of a grasp executed since that took none of
     ``targets`` (`planner.jaw_footprints`), or none. For each jaw, the non-target object whose
     outline comes nearest it, if within SUSPECT_NEAR, becomes a suspect with margin its gap
-    plus SUSPECT_EXTRA (the larger if it was one already). Returns the new suspects, every one
-    not yet taken, at the objects' positions in ``scene``."""
+    plus SUSPECT_EXTRA (the larger if it was one already). Returns the new suspects, all of
+    them found again, at the objects' positions in ``scene``."""
     margins = {i: e[3] for e, i in zip(suspects, _found_again(suspects, scene), strict=True) if i is not None}
     if len(footprints) and len(scene):
         hit = {i for i in _found_again(targets, scene) if i is not None}
@@ -295,7 +295,7 @@ def tally_suspects(suspects: tuple, scene, footprints=(), targets: tuple = ()) -
             gaps[list(hit)] = np.inf
             i = int(np.argmin(gaps))
             if gaps[i] <= SUSPECT_NEAR:
-                margins[i] = max(margins.pop(i, 0.0), float(gaps[i]) + SUSPECT_EXTRA)
+                margins[i] = max(margins.get(i, 0.0), float(gaps[i]) + SUSPECT_EXTRA)
     return tuple(
         (scene.objects[i].shape, float(scene.objects[i].x), float(scene.objects[i].y), round(m, 4))
         for i, m in margins.items()
