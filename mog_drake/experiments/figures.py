@@ -120,12 +120,12 @@ def picking_figure(summary: dict, path: str | Path, paper: dict | None = None) -
 MODE_COLORS = {"mog": "#2471a3", "sog": "#c0392b", "push-mog": "#1e8449"}
 
 
-def study_figure(rows: list[dict], path: str | Path, title: str = "") -> Path:
+def study_figure(rows: list[dict], path: str | Path, title: str = "", paper: dict | None = None) -> Path:
     """The uncertainty study: success and objects per successful grasp against the level of
-    uncertainty, per mode (95 % intervals), the paper's real robot marked. ``rows``: one
-    per level and mode (`frames.study`'s records), with ``level``."""
-    from mog_drake.experiments.picking_eval import PAPER_TABLE1  # the paper's real robot
-
+    uncertainty, per mode (95 % intervals). ``rows``: one per level and mode (`frames.study`'s
+    records), with ``level``; ``paper``: {mode: {success_rate, objects_per_success}}, the
+    paper's real robot marked."""
+    paper = paper or {}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     modes = list(dict.fromkeys(r["mode"] for r in rows))
     for m in modes:
@@ -137,9 +137,9 @@ def study_figure(rows: list[dict], path: str | Path, title: str = "") -> Path:
                 lv, [r[key] for r in rs], yerr=[np.nan_to_num(r[key + "_ci"]) for r in rs],
                 marker="o", capsize=3, color=c, label=f"{m}, simulated",
             )  # fmt: skip
-        if m in PAPER_TABLE1:
+        if m in paper:
             for ax, key in zip(axes, ("success_rate", "objects_per_success")):
-                ax.axhline(PAPER_TABLE1[m][key], color=c, ls="--", lw=1, label=f"{m}, the paper's UR5")
+                ax.axhline(paper[m][key], color=c, ls="--", lw=1, label=f"{m}, the paper's UR5")
     axes[0].set_ylabel("successful grasps (%)")
     axes[1].set_ylabel("objects per successful grasp")
     # A level run on few tables has an interval wider than the scale; the scale stays the
