@@ -11,7 +11,6 @@ from mog_drake.files import atomic_path
 
 # The paper's figures (REFERENCE Sec. 3), drawn beside ours.
 PAPER_TN_BY_CLASS = {"2": 96.0, "3": 85.5, "4": 96.3, "5": 93.3, "6": 93.9, "7": 95.2}
-PAPER_PLANNING_TIME = {"gp": 2.2, "rand-phys": 41.8, "rank-phys": 28.4, "rand-fil-phys": 3.1}
 
 
 def conditions_figure(summary: dict, path: str | Path) -> Path:

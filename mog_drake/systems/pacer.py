@@ -16,7 +16,6 @@ class WallClockPacer:
     def __init__(self, simulator, step: float = 0.01, clock=time.monotonic, sleep=time.sleep):
         self.sim, self.step, self.clock, self.sleep = simulator, step, clock, sleep
         self.offset: float | None = None  # wall time minus simulated time
-        self.dropped = 0.0  # s of wall time the simulation fell behind (slow steps)
 
     def advance_to(self, t_end: float) -> None:
         ctx = self.sim.get_context()
@@ -31,4 +30,3 @@ class WallClockPacer:
             late = self.clock() - (self.offset + t_next)
             if late > self.step:
                 self.offset += late
-                self.dropped += late
