@@ -475,6 +475,15 @@ def test_picks_per_hour_are_also_given_at_the_paper_s_robot_cycle():
     assert row["pph_paper_cycle"] == pytest.approx((1.5 + 1.0 + 1.0) / 3 * 3600 / 12.2)
 
 
+def test_a_push_costs_the_paper_s_cycle_its_share_of_a_grasp_s_robot_time():
+    """push-mog: 33 objects in 20 attempts of 5 s of robot time and 6 pushes of 3.5 s (21 s):
+    20 + 21 / 5 = 24.2 of the paper's cycles, not 20."""
+    r = _picking_record(0, "push-mog", 1.0, 600.0)
+    r["summary"].update(objects=33, picked_pct=100.0, attempts=20, robot_time_s=121.0, push_time_s=21.0)
+    row = picking_eval.summarize([r], ["push-mog"])["rows"][0]
+    assert row["pph_paper_cycle"] == pytest.approx(33 / 24.2 * 3600 / 12.2)
+
+
 def test_the_arms_wait_is_split_by_what_the_decision_had_from_the_lookahead():
     """Each idle gap before an attempt or a push (from the end of the one before) goes to its
     decision's kind: the table's first, then by its lookahead. The grasp a push set up waits
