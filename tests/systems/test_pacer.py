@@ -65,6 +65,7 @@ def test_after_a_slow_step_no_burst():
     starts = [at for at, _ in sim.calls]
     gaps = [b - a for a, b in zip(starts, starts[1:])]
     assert max(gaps) == pytest.approx(0.31, abs=1e-6)  # the stall, then one period
-    after = gaps[starts.index(next(at for at, t in sim.calls if abs(t - 0.05) < 1e-9)) + 1 :]
+    stall = next(k for k, (_, t) in enumerate(sim.calls) if abs(t - 0.05) < 1e-9)
+    after = gaps[stall + 1 :]
     assert len(after) == 14 and min(after) >= 0.01 - 1e-9
     assert wall.t - (starts[0] - 0.01) == pytest.approx(0.5, abs=0.003)
